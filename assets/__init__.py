@@ -1,0 +1,1 @@
+"""Package data: the generated MJCF model and the shipped demonstration sets."""

@@ -1,0 +1,257 @@
+"""LavaBridge-v0: a point mass must cross a narrow bridge between lava pits to reach a goal."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import gymnasium
+import mujoco
+import numpy as np
+from gymnasium import spaces
+
+from lava_bridge_mj.layout import Layout
+from lava_bridge_mj.mjcf import load_model
+from lava_bridge_mj.starts import START_NAMES, start_distribution
+
+RESET_OPTION_KEYS = ("state", "qpos", "qvel", "start")
+WALL_PENETRATION_TOLERANCE = 1.0
+"""A state may overlap a wall by less than this fraction of the ball radius (its centre stays out):
+soft contacts and discrete steps let a ball hitting a wall sink in by up to a few centimetres, and
+every state a trajectory visits must reset cleanly."""
+
+
+class LavaBridgeEnv(gymnasium.Env):
+    """A point mass in a two-room maze joined by a narrow bridge over lava.
+
+    ## Description
+    The ball starts in the left room and must reach the goal disc in the right room. The only way
+    across is a bridge 0.3 m wide and 3 m long; everything else between the rooms is lava. A random or
+    entropy-driven explorer almost never crosses; a controller that slows down and lines up does.
+    The task reproduces "Lava Bridge" from Mehra, Capone and Schneider (2024), *Accelerated Online
+    Reinforcement Learning using Auxiliary Start State Distributions*.
+
+    ## Action Space
+    `Box(-1, 1, (2,), float32)`: the force on the ball along x and y, in units of `gear` newtons.
+    Out-of-range actions are clipped (MuJoCo's control range); non-finite or misshapen ones raise.
+
+    ## Observation Space
+    `Box(4,) float64`: the ball's position (x, y) in metres and velocity (vx, vy) in m/s, which is
+    the whole physics state, so `reset(options={"state": obs})` recreates any observed moment.
+
+    ## Rewards
+    Sparse: `goal_reward` (+1) on reaching the goal, `lava_reward` (-1) on touching lava,
+    `step_reward` (0) otherwise.
+
+    ## Starting State
+    `options={"start": "p0"}` (the default): a point in one of three small blobs at the left end of
+    the start room, at rest. `options={"start": "ood"}`: spots elsewhere in the start room, some beside
+    the lava edge, so the bridge must be approached along the pit. `options={"state": s}` or
+    `options={"qpos": ..., "qvel": ...}` starts from any valid physics state.
+
+    ## Episode End
+    Terminates when the ball's centre comes within `goal_radius` of the goal (success,
+    `info["is_success"]`) or its footprint touches a lava pit (`info["lava"]`), checked after every
+    physics step, from MuJoCo's contacts. `gymnasium.make` truncates at 500 steps.
+
+    ## Arguments
+    `render_mode` (None or "rgb_array"), `width`/`height` of rendered frames, `render_quality`
+    ("fast": no shadows, reflections or anti-aliasing; "high": MuJoCo's defaults), the three rewards,
+    and every field of `Layout` (room and bridge sizes, goal, p0 blobs, ood spots, ball, damping, gear,
+    timestep, frame skip), e.g. `gymnasium.make("LavaBridge-v0", bridge_width=0.4)`; or a whole
+    `layout=Layout(...)`.
+
+    ## Version History
+    - v0: initial release.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        *,
+        layout: Layout | None = None,
+        goal_reward: float = 1.0,
+        lava_reward: float = -1.0,
+        step_reward: float = 0.0,
+        width: int = 960,
+        height: int = 400,
+        render_quality: str = "fast",
+        **layout_fields: Any,
+    ):
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode={render_mode!r}; expected None or 'rgb_array'")
+        if render_quality not in ("fast", "high"):
+            raise ValueError(f"render_quality={render_quality!r}; expected 'fast' or 'high'")
+        unknown = set(layout_fields) - {f.name for f in dataclasses.fields(Layout)}
+        if unknown:
+            raise TypeError(f"unknown LavaBridgeEnv arguments {sorted(unknown)}; Layout fields and "
+                            "render_mode, layout, goal_reward, lava_reward, step_reward, width, height, "
+                            "render_quality are accepted")
+        self.layout = dataclasses.replace(layout or Layout(), **layout_fields)
+        self.goal_reward, self.lava_reward, self.step_reward = goal_reward, lava_reward, step_reward
+        self.render_mode = render_mode
+        self.width, self.height, self.render_quality = width, height, render_quality
+
+        self.model = load_model(self.layout)
+        self.data = mujoco.MjData(self.model)
+        self._probe = mujoco.MjData(self.model)  # scratch data: validate a state without touching self.data
+        self.frame_skip = self.layout.frame_skip
+        self.dt = self.layout.control_dt
+
+        geom_id = lambda name: mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, name)  # noqa: E731
+        # geom id -> kind lookups, so classifying a contact is one fancy-index
+        self._is_lava = np.zeros(self.model.ngeom, dtype=bool)
+        self._is_lava[[geom_id(n) for n in self.layout.lava_pits]] = True
+        self._is_wall = np.zeros(self.model.ngeom, dtype=bool)
+        self._is_wall[[geom_id(n) for n in self.layout.walls]] = True
+        self._goal_geom = geom_id("goal")
+        self.start_distributions = {name: start_distribution(self.layout, name) for name in START_NAMES}
+
+        hx, hy = self.layout.half_extent
+        # Each axis's speed stays below gear / damping: the force's terminal velocity.
+        v = self.layout.top_speed
+        high = np.array([hx, hy, v, v])
+        self.observation_space = spaces.Box(-high, high, dtype=np.float64)
+        self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
+        self._renderer = None
+
+    # --- named physics accessors ---------------------------------------------------------------
+    def lava_contact(self, data: mujoco.MjData | None = None) -> bool:
+        """True when the ball's footprint touches a lava pit, read from MuJoCo's contacts of `data`."""
+        data = self.data if data is None else data
+        return data.ncon > 0 and bool(self._is_lava[data.contact.geom].any())
+
+    def goal_contact(self, data: mujoco.MjData | None = None) -> bool:
+        """True when the ball's centre is within goal_radius of the goal, read from MuJoCo's contacts."""
+        data = self.data if data is None else data
+        return data.ncon > 0 and bool((data.contact.geom == self._goal_geom).any())
+
+    def get_state(self) -> np.ndarray:
+        """The physics state (x, y, vx, vy): a copy, identical to the observation."""
+        return np.concatenate([self.data.qpos, self.data.qvel])
+
+    def set_state(self, qpos: Any, qvel: Any = (0.0, 0.0)) -> None:
+        """Put the ball at `qpos` with velocity `qvel`, after checking the state is valid.
+
+        Raises ValueError, leaving the current state untouched, for a misshapen or non-finite state,
+        one outside the maze, overlapping a wall or touching lava.
+        """
+        qpos, qvel = self._check_state(qpos, qvel)
+        mujoco.mj_resetData(self.model, self.data)  # also clears warm starts: reset is deterministic
+        self.data.qpos[:] = qpos
+        self.data.qvel[:] = qvel
+        # step() expects position- and velocity-dependent quantities (contacts) to be current
+        mujoco.mj_forward(self.model, self.data)
+
+    def _check_state(self, qpos: Any, qvel: Any) -> tuple[np.ndarray, np.ndarray]:
+        qpos = self._as_vector("qpos", qpos)
+        qvel = self._as_vector("qvel", qvel)
+        hx, hy = self.layout.half_extent
+        x, y = qpos
+        if abs(x) > hx or abs(y) > hy:
+            raise ValueError(f"state position ({x:g}, {y:g}) is outside the maze (|x| <= {hx:g}, |y| <= {hy:g})")
+        v = self.layout.top_speed
+        if np.abs(qvel).max() > v:
+            raise ValueError(f"state velocity {qvel} exceeds the top speed {v:g} m/s on an axis (gear / damping)")
+        probe = self._probe
+        mujoco.mj_resetData(self.model, probe)
+        probe.qpos[:] = qpos
+        mujoco.mj_fwdPosition(self.model, probe)  # kinematics and collision only
+        if self.lava_contact(probe):
+            raise ValueError(f"state position ({x:g}, {y:g}) touches lava")
+        limit = -WALL_PENETRATION_TOLERANCE * self.layout.ball_radius
+        for contact in probe.contact:
+            if self._is_wall[contact.geom].any() and contact.dist < limit:
+                wall = mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, int(max(contact.geom)))
+                raise ValueError(f"state position ({x:g}, {y:g}) is inside {wall} "
+                                 f"(overlap {-contact.dist:.3g} m > {-limit:g} m)")
+        return qpos, qvel
+
+    @staticmethod
+    def _as_vector(name: str, value: Any) -> np.ndarray:
+        try:
+            vector = np.array(value, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"{name} must be 2 numbers, got {value!r}") from None
+        if vector.shape != (2,):
+            raise ValueError(f"{name} must have shape (2,), got shape {vector.shape}: {value!r}")
+        if not np.isfinite(vector).all():
+            raise ValueError(f"{name} must be finite, got {vector}")
+        return vector
+
+    # --- gymnasium API -------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        qpos, qvel = self._start_from_options(options or {})
+        self.set_state(qpos, qvel)
+        return self.get_state(), {"is_success": False, "lava": False}
+
+    def _start_from_options(self, options: dict[str, Any]) -> tuple[Any, Any]:
+        unknown = set(options) - set(RESET_OPTION_KEYS)
+        if unknown:
+            raise ValueError(f"unknown reset options {sorted(unknown)}; expected some of {RESET_OPTION_KEYS}")
+        given = [k for k in ("state", "qpos", "start") if k in options]
+        if len(given) > 1:
+            raise ValueError(f"reset options {given} conflict: give one of 'state', 'qpos'(+'qvel'), 'start'")
+        if "qvel" in options and "qpos" not in options:
+            raise ValueError("reset option 'qvel' needs 'qpos' too")
+        if "state" in options:
+            state = np.asarray(options["state"], dtype=np.float64)
+            if state.shape != (4,):
+                raise ValueError(f"state must have shape (4,) = (x, y, vx, vy), got shape {state.shape}")
+            return state[:2], state[2:]
+        if "qpos" in options:
+            return options["qpos"], options.get("qvel", (0.0, 0.0))
+        name = options.get("start", "p0")
+        if name not in self.start_distributions:
+            raise ValueError(f"unknown start distribution {name!r}; expected one of {START_NAMES}")
+        state = self.start_distributions[name].sample(self.np_random)
+        return state[:2], state[2:]
+
+    def step(self, action):
+        action = np.asarray(action, dtype=np.float64)
+        if action.shape != (2,):
+            raise ValueError(f"action must have shape (2,), got shape {action.shape}")
+        if not math.isfinite(action[0] + action[1]):
+            raise ValueError(f"action must be finite, got {action}")
+        model, data = self.model, self.data
+        data.ctrl[:] = action  # MuJoCo clips to the actuators' ctrlrange [-1, 1]
+        lava = success = False
+        # mj_step split in two so contacts are current for the state just reached: lava and the
+        # goal are checked after every physics step, so a fast ball cannot cross a corner unseen.
+        for _ in range(self.frame_skip):
+            mujoco.mj_step2(model, data)
+            mujoco.mj_step1(model, data)
+            if data.ncon:
+                lava, success = self.lava_contact(), self.goal_contact()
+                if lava or success:
+                    break
+        reward = self.goal_reward if success else self.lava_reward if lava else self.step_reward
+        info = {"is_success": success, "lava": lava}
+        return self.get_state(), reward, lava or success, False, info
+
+    def render(self):
+        if self.render_mode != "rgb_array":
+            return None
+        if self._renderer is None:
+            self._renderer = self._make_renderer()
+        self._renderer.update_scene(self.data, camera="top")
+        return self._renderer.render()
+
+    def _make_renderer(self) -> mujoco.Renderer:
+        if self.render_quality == "fast":
+            self.model.vis.quality.offsamples = 0  # no multisample anti-aliasing: ~25x faster on Mesa
+        renderer = mujoco.Renderer(self.model, height=self.height, width=self.width)
+        if self.render_quality == "fast":
+            for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION,
+                         mujoco.mjtRndFlag.mjRND_SKYBOX):
+                renderer.scene.flags[flag] = False
+        return renderer
+
+    def close(self):
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
