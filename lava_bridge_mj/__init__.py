@@ -12,12 +12,13 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 
 import gymnasium  # noqa: E402
 
+from lava_bridge_mj.demos import load_demos  # noqa: E402
+from lava_bridge_mj.expert import ScriptedExpert  # noqa: E402
 from lava_bridge_mj.layout import Disc, Layout  # noqa: E402
-from lava_bridge_mj.lava_bridge import LavaBridgeEnv  # noqa: E402
+from lava_bridge_mj.lava_bridge import MAX_EPISODE_STEPS, LavaBridgeEnv  # noqa: E402
 from lava_bridge_mj.starts import START_NAMES, start_distribution  # noqa: E402
 
 ENV_ID = "LavaBridge-v0"
-MAX_EPISODE_STEPS = 500
 
 
 def register_envs() -> None:
@@ -30,4 +31,4 @@ def register_envs() -> None:
 register_envs()
 
 __all__ = ["ENV_ID", "MAX_EPISODE_STEPS", "Disc", "Layout", "LavaBridgeEnv", "START_NAMES",
-           "register_envs", "start_distribution"]
+           "ScriptedExpert", "load_demos", "register_envs", "start_distribution"]

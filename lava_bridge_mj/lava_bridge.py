@@ -15,6 +15,8 @@ from lava_bridge_mj.layout import Layout
 from lava_bridge_mj.mjcf import load_model
 from lava_bridge_mj.starts import START_NAMES, start_distribution
 
+MAX_EPISODE_STEPS = 500
+"""The paper's horizon; `gymnasium.make` adds the TimeLimit."""
 RESET_OPTION_KEYS = ("state", "qpos", "qvel", "start")
 WALL_PENETRATION_TOLERANCE = 1.0
 """A state may overlap a wall by less than this fraction of the ball radius (its centre stays out):

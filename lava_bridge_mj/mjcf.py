@@ -73,8 +73,8 @@ def build_mjcf(layout: Layout) -> str:
                    rgb1=(0.82, 0.84, 0.86), rgb2=(0.76, 0.78, 0.8))
     root.asset.add("material", name="floor", texture="grid", texrepeat=(1, 1), texuniform=True)
     root.asset.add("material", name="wall", rgba=(0.25, 0.3, 0.4, 1))
-    root.asset.add("material", name="lava", rgba=(0.9, 0.12, 0.05, 1), emission=0.5)
-    root.asset.add("material", name="ball", rgba=(0.95, 0.85, 0.1, 1))
+    root.asset.add("material", name="lava", rgba=(0.8, 0.08, 0.02, 1), emission=0.1, specular=0)
+    root.asset.add("material", name="ball", rgba=(0.1, 0.1, 0.12, 1))
 
     hx, hy = layout.half_extent
     world = root.worldbody

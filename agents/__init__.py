@@ -1,0 +1,1 @@
+"""Agents: SAC, replay buffers, start-state strategies and baselines."""

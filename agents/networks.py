@@ -1,0 +1,107 @@
+"""Network pieces shared by SAC, IQL, BC and JSRL: an MLP builder, a twin critic, a squashed
+Gaussian actor, and Polyak averaging of target networks.
+
+Everything is generic in `obs_dim`, `act_dim` and `hidden_sizes`. Actions live in [-1, 1]^act_dim
+(LavaBridge-v0's action space); wrap other envs with `gymnasium.wrappers.RescaleAction` first.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+# log_std is clamped to this range: below it the Gaussian is a spike whose log-prob explodes,
+# above it tanh saturates and the policy is effectively uniform noise.
+LOG_STD_MIN = -5.0
+LOG_STD_MAX = 2.0
+
+
+def MLP(in_dim: int, out_dim: int, hidden_sizes: Sequence[int] = (256, 256),
+        activation: type[nn.Module] = nn.ReLU) -> nn.Sequential:
+    """Linear -> activation, once per hidden size, then a linear output layer (no output activation)."""
+    layers: list[nn.Module] = []
+    for size in hidden_sizes:
+        layers += [nn.Linear(in_dim, size), activation()]
+        in_dim = size
+    layers.append(nn.Linear(in_dim, out_dim))
+    return nn.Sequential(*layers)
+
+
+class TwinQ(nn.Module):
+    """Two independent Q(s, a) networks in one module, so one optimiser and one target copy serve both.
+
+    `both(obs, action)` gives (q1, q2), each of shape (batch,); calling the module gives their minimum,
+    the pessimistic estimate SAC's actor and IQL's value target use (clipped double Q).
+    """
+
+    def __init__(self, obs_dim: int, act_dim: int, hidden_sizes: Sequence[int] = (256, 256)):
+        super().__init__()
+        self.q1 = MLP(obs_dim + act_dim, 1, hidden_sizes)
+        self.q2 = MLP(obs_dim + act_dim, 1, hidden_sizes)
+
+    def both(self, obs: torch.Tensor, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        x = torch.cat([obs, action], dim=-1)
+        return self.q1(x).squeeze(-1), self.q2(x).squeeze(-1)
+
+    def forward(self, obs: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
+        return torch.minimum(*self.both(obs, action))
+
+
+class TanhGaussianActor(nn.Module):
+    """pi(a|s) = tanh(u), u ~ Normal(mean(s), std(s)): a Gaussian squashed into [-1, 1].
+
+    The log-density of a = tanh(u) is the Gaussian's minus the log-Jacobian of tanh,
+    sum_i log(1 - tanh(u_i)^2), written as 2 * (log 2 - u - softplus(-2u)), which stays finite
+    where tanh saturates. The deterministic (evaluation) action is tanh(mean).
+    """
+
+    def __init__(self, obs_dim: int, act_dim: int, hidden_sizes: Sequence[int] = (256, 256)):
+        super().__init__()
+        self.net = MLP(obs_dim, 2 * act_dim, hidden_sizes)
+
+    def distribution(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The pre-tanh Gaussian: (mean, log_std), each (batch, act_dim)."""
+        mean, log_std = self.net(obs).chunk(2, dim=-1)
+        return mean, log_std.clamp(LOG_STD_MIN, LOG_STD_MAX)
+
+    def forward(self, obs: torch.Tensor, deterministic: bool = False,
+                generator: torch.Generator | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        """Sample (reparameterised, so gradients flow) an action and its log-prob, shape (batch,).
+
+        `generator` draws the noise; pass one for runs that do not depend on torch's global seed.
+        In deterministic mode the action is tanh(mean) and the log-prob is that of the mean.
+        """
+        mean, log_std = self.distribution(obs)
+        if deterministic:
+            u = mean
+        else:
+            noise = torch.randn(mean.shape, generator=generator, dtype=mean.dtype, device=mean.device)
+            u = mean + log_std.exp() * noise
+        return torch.tanh(u), _squashed_log_prob(u, mean, log_std)
+
+    def log_prob(self, obs: torch.Tensor, action: torch.Tensor, eps: float = 1e-6) -> torch.Tensor:
+        """log pi(action | obs) for given actions in [-1, 1] (BC and IQL's weighted regression).
+
+        Actions are clipped to [-1 + eps, 1 - eps] before atanh so demo actions on the bound stay finite.
+        """
+        mean, log_std = self.distribution(obs)
+        u = torch.atanh(action.clamp(-1.0 + eps, 1.0 - eps))
+        return _squashed_log_prob(u, mean, log_std)
+
+
+def _squashed_log_prob(u: torch.Tensor, mean: torch.Tensor, log_std: torch.Tensor) -> torch.Tensor:
+    """log N(u; mean, std) - log|d tanh(u)/du|, summed over action dimensions."""
+    gaussian = -0.5 * ((u - mean) / log_std.exp()) ** 2 - log_std - 0.5 * math.log(2 * math.pi)
+    log_jacobian = 2.0 * (math.log(2.0) - u - F.softplus(-2.0 * u))
+    return (gaussian - log_jacobian).sum(-1)
+
+
+@torch.no_grad()
+def soft_update(target: nn.Module, source: nn.Module, tau: float) -> None:
+    """Polyak averaging, in place: target <- (1 - tau) * target + tau * source."""
+    for t, s in zip(target.parameters(), source.parameters(), strict=True):
+        t.lerp_(s, tau)
