@@ -1,1 +1,21 @@
-"""Agents: SAC, replay buffers, start-state strategies and baselines."""
+"""Agents: SAC, start-state strategies and the wrapper that plugs them into any resettable env."""
+
+from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
+from lava_bridge_mj.agents.sac import SAC, SACConfig
+from lava_bridge_mj.agents.start_state_wrapper import StartStateWrapper
+from lava_bridge_mj.agents.start_strategies import (
+    NO_STATE,
+    STRATEGY_NAMES,
+    AuxSS,
+    GoalDistSS,
+    OmegaSS,
+    P0Start,
+    StartStrategy,
+    UniformSS,
+    estimate_random_policy_safety,
+    make_start_strategy,
+)
+
+__all__ = ["NO_STATE", "STRATEGY_NAMES", "SAC", "AuxSS", "GoalDistSS", "OmegaSS", "P0Start", "ReplayBuffer",
+           "SACConfig", "StartStateWrapper", "StartStrategy", "UniformSS", "estimate_random_policy_safety",
+           "make_start_strategy"]

@@ -238,10 +238,15 @@ class LavaBridgeEnv(gymnasium.Env):
     def render(self):
         if self.render_mode != "rgb_array":
             return None
+        self.renderer.update_scene(self.data, camera="top")
+        return self.renderer.render()
+
+    @property
+    def renderer(self) -> mujoco.Renderer:
+        """The off-screen mujoco.Renderer (made on first use), for drawing extras into its scene."""
         if self._renderer is None:
             self._renderer = self._make_renderer()
-        self._renderer.update_scene(self.data, camera="top")
-        return self._renderer.render()
+        return self._renderer
 
     def _make_renderer(self) -> mujoco.Renderer:
         if self.render_quality == "fast":

@@ -1,0 +1,44 @@
+# The README's two commands: `make run` (the main job on its defaults) and `make test`.
+# Both set up everything on a fresh Debian machine: Mesa for off-screen rendering, a virtualenv,
+# the CPU build of torch and this package.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+MESA_PACKAGES := libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 libosmesa6
+export MUJOCO_GL ?= egl
+
+.PHONY: run test bench setup gl clean
+
+run: setup
+	$(BIN)/python -m lava_bridge_mj.eval.video --out runs/expert.mp4
+
+test: setup
+	$(BIN)/python -m pytest
+
+bench: setup
+	$(BIN)/python bench/env_throughput.py
+
+setup: gl $(STAMP)
+
+# Off-screen OpenGL through Mesa (software EGL/OSMesa) when no GL library is installed yet.
+gl:
+	@if ! ldconfig -p | grep -q 'libEGL.so.1' || ! ldconfig -p | grep -Eq 'libEGL_(mesa|nvidia)'; then \
+	    if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	        echo "installing Mesa for off-screen rendering: $(MESA_PACKAGES)"; \
+	        apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(MESA_PACKAGES) >/dev/null; \
+	    else \
+	        echo "warning: no libEGL found; install $(MESA_PACKAGES) (Debian) for rendering; render tests will be skipped"; \
+	    fi; \
+	fi
+
+$(STAMP): setup.cfg pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install -q --upgrade pip
+	# the CPU build of torch first: any other version would pull a multi-GB CUDA build
+	$(BIN)/pip install -q torch==2.13.0
+	$(BIN)/pip install -q -e '.[test,plots]'
+	touch $(STAMP)
+
+clean:
+	rm -rf $(VENV) build *.egg-info

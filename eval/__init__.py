@@ -1,0 +1,1 @@
+"""Training runner, benchmark CLI, metrics, plots and rollout videos."""

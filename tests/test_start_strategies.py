@@ -1,0 +1,407 @@
+"""Start-state strategies and StartStateWrapper: hand-computed updates, sampling, persistence, resets."""
+
+import json
+import math
+
+import gymnasium
+import numpy as np
+import pytest
+
+import lava_bridge_mj  # noqa: F401  (registers LavaBridge-v0)
+from lava_bridge_mj.agents.start_state_wrapper import StartStateWrapper
+from lava_bridge_mj.agents.start_strategies import (
+    NO_STATE,
+    STRATEGY_NAMES,
+    AuxSS,
+    GoalDistSS,
+    OmegaSS,
+    P0Start,
+    UniformSS,
+    estimate_random_policy_safety,
+    make_start_strategy,
+)
+
+# Three states for hand computation: S1 is 0.3 m from S0 in x, S2 differs from S0 only in vy (0.6 m/s).
+# With sigma = 0.3 (2 sigma^2 = 0.18): lam(S0, S1) = exp(-0.09 / 0.18) = exp(-0.5),
+# lam(S0, S2) = exp(-0.36 / 0.18) = exp(-2), lam(S1, S2) = exp(-(0.09 + 0.36) / 0.18) = exp(-2.5).
+THREE_STATES = np.array([[0.0, 0.0, 0.0, 0.0],
+                         [0.3, 0.0, 0.0, 0.0],
+                         [0.0, 0.0, 0.0, 0.6]])
+
+
+def chi_square(counts: np.ndarray, probabilities: np.ndarray) -> float:
+    expected = counts.sum() * probabilities
+    return float(((counts - expected) ** 2 / expected).sum())
+
+
+# --- AuxSS ------------------------------------------------------------------------------------
+def test_auxss_update_matches_hand_computation_with_delta_floor():
+    aux = AuxSS(THREE_STATES, horizon=100, delta=0.05, sigma=0.3)
+    np.testing.assert_array_equal(aux.weights, [1.0, 1.0, 1.0])
+
+    # episode of 40 steps from S0: W[0] = (100 - 40) / 100 = 0.6, smoothed onto S1 and S2
+    aux.update(0, 40)
+    w0 = 0.6
+    w1 = (1 - math.exp(-0.5)) * 1.0 + math.exp(-0.5) * 0.6
+    w2 = (1 - math.exp(-2.0)) * 1.0 + math.exp(-2.0) * 0.6
+    np.testing.assert_allclose(aux.weights, [w0, w1, w2], rtol=1e-12)
+    np.testing.assert_allclose(aux.weights, [0.6, 0.7573877361, 0.9458658867], rtol=1e-9)
+
+    # a timeout from S1: (100 - 100) / 100 = 0 is floored at delta = 0.05
+    aux.update(1, 100)
+    w0, w1, w2 = ((1 - math.exp(-0.5)) * w0 + math.exp(-0.5) * 0.05,
+                  0.05,
+                  (1 - math.exp(-2.5)) * w2 + math.exp(-2.5) * 0.05)
+    np.testing.assert_allclose(aux.weights, [w0, w1, w2], rtol=1e-12)
+    np.testing.assert_allclose(aux.probabilities, np.array([w0, w1, w2]) / (w0 + w1 + w2), rtol=1e-12)
+
+
+def test_auxss_position_kernel_ignores_velocity():
+    aux = AuxSS(THREE_STATES, horizon=100, delta=0.05, sigma=0.3, kernel_dims="position")
+    aux.update(0, 40)
+    # S2 sits at S0's position, so lam = 1 and it takes W[0] outright
+    np.testing.assert_allclose(aux.weights, [0.6, 1 - 0.4 * math.exp(-0.5), 0.6], rtol=1e-12)
+
+
+def test_auxss_state_scale_divides_components_before_distance():
+    # vy scaled by 2: S2's 0.6 m/s counts as 0.3, so lam(S0, S2) = exp(-0.09 / 0.18) = exp(-0.5)
+    aux = AuxSS(THREE_STATES, horizon=100, sigma=0.3, state_scale=(1, 1, 1, 2))
+    aux.update(0, 40)
+    assert aux.weights[2] == pytest.approx(1 - 0.4 * math.exp(-0.5), rel=1e-12)
+
+
+def test_auxss_ema_moves_part_way():
+    aux = AuxSS(THREE_STATES, horizon=100, delta=0.05, sigma=0.3, ema=0.5)
+    aux.update(0, 40)
+    w0 = 0.5 * 1.0 + 0.5 * 0.6  # 0.8, not the overwrite's 0.6
+    w1 = (1 - math.exp(-0.5)) + math.exp(-0.5) * w0
+    np.testing.assert_allclose(aux.weights[:2], [0.8, w1], rtol=1e-12)
+    aux.update(0, 40)
+    assert aux.weights[0] == pytest.approx(0.5 * 0.8 + 0.5 * 0.6, rel=1e-12)
+
+
+def test_auxss_count_successes_false_skips_goal_episodes():
+    counting = AuxSS(THREE_STATES, horizon=100, sigma=0.3)
+    skipping = AuxSS(THREE_STATES, horizon=100, sigma=0.3, count_successes=False)
+    counting.update(0, 10, success=True)
+    skipping.update(0, 10, success=True)
+    assert counting.weights[0] == pytest.approx(0.9)  # the paper: a short success counts like a failure
+    np.testing.assert_array_equal(skipping.weights, [1.0, 1.0, 1.0])
+    skipping.update(0, 10, success=False)  # lava still counts
+    assert skipping.weights[0] == pytest.approx(0.9)
+
+
+def test_auxss_weights_view_is_read_only_and_live():
+    aux = AuxSS(THREE_STATES)
+    view = aux.weights
+    with pytest.raises(ValueError):
+        view[0] = 5.0
+    aux.update(0, 250)
+    assert view[0] == pytest.approx(0.5)  # (500 - 250) / 500, seen through the old view
+
+
+def test_auxss_effective_neighbourhood_counts_states_within_half_kernel():
+    # lam > 0.5 needs distance < sigma * sqrt(2 ln 2) ~ 0.353: S0-S1 (0.3) yes, S0-S2 (0.6) and S1-S2 no
+    aux = AuxSS(THREE_STATES, sigma=0.3)
+    np.testing.assert_array_equal(aux.effective_neighbourhood(), [2, 2, 1])
+    np.testing.assert_array_equal(aux.effective_neighbourhood(threshold=0.1), [3, 2, 2])  # exp(-2) = 0.135
+
+
+@pytest.mark.parametrize("params, match", [
+    (dict(delta=0.0), "delta"), (dict(delta=1.5), "delta"), (dict(sigma=0.0), "sigma"),
+    (dict(sigma=-1.0), "sigma"), (dict(sigma=float("nan")), "sigma"), (dict(horizon=0), "horizon"),
+    (dict(ema=0.0), "ema"), (dict(kernel_dims="velocity"), "kernel_dims"),
+    (dict(state_scale=(1, 1, 0, 1)), "state_scale"),
+])
+def test_auxss_rejects_bad_parameters(params, match):
+    with pytest.raises(ValueError, match=match):
+        AuxSS(THREE_STATES, **params)
+
+
+@pytest.mark.parametrize("states, match", [
+    (np.zeros((0, 4)), "at least one"), (np.zeros((3, 2)), r"shape \(n, 4\)"), (np.zeros(4), r"shape \(n, 4\)"),
+    (np.array([[0, 0, 0, np.nan]]), "finite"), ("abc", "numbers"),
+])
+def test_strategies_reject_bad_states(states, match):
+    with pytest.raises(ValueError, match=match):
+        UniformSS(states)
+
+
+def test_update_rejects_out_of_range_index():
+    with pytest.raises(ValueError, match="out of range"):
+        AuxSS(THREE_STATES).update(3, 10)
+
+
+# --- sampling ---------------------------------------------------------------------------------
+def test_sampling_frequencies_follow_weights():
+    # omega 0.5, 0.25 and 0 (clamped to 0.05) give weights 2, 4, 20
+    omega_ss = OmegaSS(THREE_STATES, omega=[0.5, 0.25, 0.0], clamp=0.05)
+    expected = np.array([2.0, 4.0, 20.0]) / 26.0
+    np.testing.assert_allclose(omega_ss.probabilities, expected, rtol=1e-12)
+    rng = np.random.default_rng(0)
+    counts = np.bincount([omega_ss.sample(rng) for _ in range(20_000)], minlength=3)
+    assert chi_square(counts, expected) < 16.0  # 2 degrees of freedom: p < 0.0004 to fail by chance
+
+
+def test_auxss_sampling_follows_updated_weights():
+    aux = AuxSS(THREE_STATES, horizon=100, delta=0.05, sigma=0.3)
+    aux.update(1, 100)  # S1 drops to delta: rarely sampled afterwards
+    rng = np.random.default_rng(1)
+    counts = np.bincount([aux.sample(rng) for _ in range(20_000)], minlength=3)
+    assert chi_square(counts, aux.probabilities) < 16.0
+    assert counts[1] < counts[0] < counts[2]
+
+
+def test_zero_weight_state_is_never_sampled():
+    uniform = UniformSS(THREE_STATES)
+    uniform._weights[1] = 0.0
+    rng = np.random.default_rng(2)
+    assert 1 not in {uniform.sample(rng) for _ in range(2_000)}
+
+
+# --- OmegaSS ----------------------------------------------------------------------------------
+def test_omega_ss_ranks_a_state_over_lava_above_open_space():
+    env = gymnasium.make("LavaBridge-v0")
+    states = np.array([[0.0, 0.0, 0.0, 2.0],    # on the bridge, sliding sideways into lava at 2 m/s
+                       [-4.5, 0.0, 0.0, 0.0]])  # at rest in the middle of the start room
+    omega = estimate_random_policy_safety(env, states, k=4, rollouts=8, seed=0)
+    np.testing.assert_array_equal(omega, [0.0, 1.0])
+    omega_ss = make_start_strategy("omega_ss", states, env=env, rollouts=8)
+    assert omega_ss.probabilities[0] > 0.9  # weights 1 / 0.05 = 20 against 1 / 1 = 1
+    np.testing.assert_allclose(omega_ss.probabilities, [20 / 21, 1 / 21], rtol=1e-12)
+
+
+class CountdownEnv(gymnasium.Env):
+    """A fake env: the state's first component is how many steps until termination; success if y > 0.
+
+    Records the options of every reset, so tests can see what the wrapper asked for.
+    """
+
+    observation_space = gymnasium.spaces.Box(-100, 100, (4,), dtype=np.float64)
+    action_space = gymnasium.spaces.Box(-1, 1, (2,), dtype=np.float32)
+
+    def __init__(self, default_steps: int = 7, truncate_at: int = 1_000):
+        self.default_steps, self.truncate_at = default_steps, truncate_at
+        self.reset_options = []
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        self.reset_options.append(options)
+        state = (options or {}).get("state", (self.default_steps, 0.0, 0.0, 0.0))
+        self.state = np.array(state, dtype=np.float64)
+        self.steps = 0
+        return self.state.copy(), {}
+
+    def step(self, action):
+        self.steps += 1
+        terminated = self.steps >= self.state[0]
+        success = bool(terminated and self.state[1] > 0)
+        return self.state.copy(), float(success), terminated, self.steps >= self.truncate_at, {"is_success": success}
+
+
+def test_random_policy_safety_counts_lava_but_not_the_goal():
+    states = np.array([[2.0, -1.0, 0, 0],   # fails within k = 4 steps
+                       [2.0, 1.0, 0, 0],    # reaches the goal within 4 steps: safe
+                       [9.0, -1.0, 0, 0]])  # survives 4 steps
+    np.testing.assert_array_equal(estimate_random_policy_safety(CountdownEnv(), states, k=4, rollouts=3), [0, 1, 1])
+    # with k = 1 the first state survives its only step
+    np.testing.assert_array_equal(estimate_random_policy_safety(CountdownEnv(), states, k=1, rollouts=3), [1, 1, 1])
+
+
+# --- GoalDistSS -------------------------------------------------------------------------------
+def test_goaldist_moves_from_goal_heavy_to_near_uniform():
+    goal = (4.5, 1.0)
+    distances = np.array([0.0, 1.0, 2.0, 4.0])
+    states = np.stack([goal[0] - distances, np.full(4, goal[1]), np.zeros(4), np.zeros(4)], axis=1)
+    goaldist = GoalDistSS(states, goal=goal, temperature=0.5, temperature_growth=1.5, max_temperature=50.0)
+    early = np.exp(-distances / 0.5)
+    np.testing.assert_allclose(goaldist.probabilities, early / early.sum(), rtol=1e-12)
+    assert goaldist.probabilities[0] > 0.85
+
+    goaldist.update(0, 10)
+    goaldist.update(3, 10)
+    assert goaldist.temperature == pytest.approx(0.5 * 1.5 * 1.5)
+    after_two = np.exp(-distances / 1.125)
+    np.testing.assert_allclose(goaldist.probabilities, after_two / after_two.sum(), rtol=1e-12)
+
+    for _ in range(30):  # 0.5 * 1.5**32 is far past the cap
+        goaldist.update(1, 10)
+    assert goaldist.temperature == 50.0
+    late = np.exp(-distances / 50.0)
+    np.testing.assert_allclose(goaldist.probabilities, late / late.sum(), rtol=1e-12)
+    np.testing.assert_allclose(goaldist.probabilities, 0.25, atol=0.02)
+
+
+# --- persistence ------------------------------------------------------------------------------
+STRATEGY_PARAMS = {
+    "p0": {},
+    "auxss": dict(horizon=100, sigma=0.3),
+    "omega_ss": dict(omega=[0.5, 0.25, 0.0]),
+    "uniform_ss": {},
+    "goaldist_ss": dict(goal=(0.0, 0.0), temperature=0.1, temperature_growth=2.0),
+}
+
+
+@pytest.mark.parametrize("name", STRATEGY_NAMES)
+def test_state_dict_round_trips_through_json(name):
+    trained = make_start_strategy(name, THREE_STATES, **STRATEGY_PARAMS[name])
+    episodes = [(0, 40, False), (1, 100, False), (2, 5, True)] if name != "p0" else [(NO_STATE, 40, False)]
+    for index, length, success in episodes:
+        trained.update(index, length, success=success)
+    restored = make_start_strategy(name, THREE_STATES, **STRATEGY_PARAMS[name])
+    restored.load_state_dict(json.loads(json.dumps(trained.state_dict())))
+
+    np.testing.assert_array_equal(restored.weights, trained.weights)
+    rng_a, rng_b = np.random.default_rng(3), np.random.default_rng(3)
+    assert [restored.sample(rng_a) for _ in range(50)] == [trained.sample(rng_b) for _ in range(50)]
+    if name in ("auxss", "goaldist_ss"):  # learning strategies: a fresh one really is different
+        fresh = make_start_strategy(name, THREE_STATES, **STRATEGY_PARAMS[name])
+        assert not np.allclose(fresh.probabilities, trained.probabilities)
+
+
+def test_load_state_dict_rejects_other_strategies_and_state_sets():
+    aux = AuxSS(THREE_STATES)
+    with pytest.raises(ValueError, match="goaldist_ss"):
+        aux.load_state_dict({"name": "goaldist_ss", "num_states": 3, "weights": [1, 1, 1]})
+    with pytest.raises(ValueError, match="5 states"):
+        aux.load_state_dict({"name": "auxss", "num_states": 5, "weights": [1, 1, 1]})
+    with pytest.raises(ValueError, match="shape"):
+        aux.load_state_dict({"name": "auxss", "num_states": 3, "weights": [1, 1]})
+    with pytest.raises(ValueError, match="keys"):
+        aux.load_state_dict({"name": "auxss", "num_states": 3})
+    with pytest.raises(ValueError, match="'auxss', not 'uniform_ss'"):
+        UniformSS(THREE_STATES).load_state_dict(aux.state_dict())
+    with pytest.raises(ValueError, match="keys"):
+        aux.load_state_dict({"name": "auxss", "num_states": 3, "weights": [1, 1, 1], "episodes": 2})
+
+
+# --- make_start_strategy ----------------------------------------------------------------------
+def test_make_start_strategy_builds_each_name():
+    built = {name: make_start_strategy(name, THREE_STATES, **STRATEGY_PARAMS[name]) for name in STRATEGY_NAMES}
+    assert isinstance(built["p0"], P0Start)
+    assert isinstance(built["auxss"], AuxSS) and built["auxss"].horizon == 100
+    assert isinstance(built["omega_ss"], OmegaSS)
+    assert isinstance(built["uniform_ss"], UniformSS)
+    assert isinstance(built["goaldist_ss"], GoalDistSS)
+    assert built["p0"].sample(np.random.default_rng(0)) == NO_STATE
+
+
+def test_auxss_defaults_are_documented_values():
+    aux = make_start_strategy("auxss", THREE_STATES)
+    assert (aux.horizon, aux.delta, aux.sigma, aux.ema, aux.count_successes, aux.kernel_dims) == \
+        (500, 0.05, 0.3, None, True, "full")
+
+
+@pytest.mark.parametrize("name, params, match", [
+    ("aux_ss", {}, r"'aux_ss'.*'auxss'"),
+    ("auxss", dict(sigmaa=0.1), r"sigmaa.*sigma"),
+    ("uniform_ss", dict(delta=0.1), "delta"),
+    ("omega_ss", {}, "exactly one"),
+    ("omega_ss", dict(omega=[1, 1, 1], env="x"), "exactly one"),
+    ("omega_ss", dict(omega=[1, 1, 1], rollouts=4), "rollouts"),
+    ("omega_ss", dict(omega=[1, 1]), "shape"),
+    ("goaldist_ss", {}, "goal"),
+    ("goaldist_ss", dict(goal=(0, 0), temperature_growth=0.9), "temperature_growth"),
+])
+def test_make_start_strategy_rejects_bad_names_and_params(name, params, match):
+    with pytest.raises(ValueError, match=match):
+        make_start_strategy(name, THREE_STATES, **params)
+
+
+# --- StartStateWrapper ------------------------------------------------------------------------
+class RecordingUniform(UniformSS):
+    """UniformSS that remembers every update."""
+
+    def __init__(self, states):
+        super().__init__(states)
+        self.updates = []
+
+    def update(self, index, episode_length, success=False):
+        super().update(index, episode_length, success)
+        self.updates.append((index, episode_length, success))
+
+
+def test_wrapper_resets_real_env_to_state_and_reports_lava_episode_length():
+    # on the bridge, drifting sideways at 0.5 m/s with no force: damping (1 s time constant) slows it,
+    # y = 0.5 (1 - exp(-t)) reaches lava's edge (0.15 - 0.05 radius = 0.1) at t = 0.22 s, in env step 3
+    state = np.array([0.0, 0.0, 0.0, 0.5])
+    strategy = AuxSS(state[None], horizon=500)
+    env = StartStateWrapper(gymnasium.make("LavaBridge-v0"), strategy, seed=0)
+    obs, info = env.reset()
+    np.testing.assert_array_equal(obs, state)
+    assert info["start_index"] == 0
+    steps, terminated = 0, False
+    while not terminated:
+        obs, reward, terminated, truncated, info = env.step(np.zeros(2, dtype=np.float32))
+        steps += 1
+    assert steps == 3 and info["lava"] and reward == -1.0
+    assert strategy.weights[0] == pytest.approx((500 - 3) / 500)
+
+
+def test_wrapper_reports_each_chosen_episode_once_with_success():
+    strategy = RecordingUniform([[3, 1.0, 0, 0], [5, -1.0, 0, 0]])
+    fake = CountdownEnv()
+    env = StartStateWrapper(fake, strategy, seed=0)
+    for _ in range(6):
+        obs, info = env.reset()
+        np.testing.assert_array_equal(obs, strategy.states[info["start_index"]])
+        np.testing.assert_array_equal(fake.reset_options[-1]["state"], obs)
+        done = False
+        while not done:
+            _, _, terminated, truncated, _ = env.step(np.zeros(2))
+            done = terminated or truncated
+        env.step(np.zeros(2))  # stepping past the end must not report again
+        expected = (0, 3, True) if info["start_index"] == 0 else (1, 5, False)
+        assert strategy.updates[-1] == expected
+    assert len(strategy.updates) == 6
+    assert {u[0] for u in strategy.updates} == {0, 1}
+
+
+def test_wrapper_reports_truncated_episodes():
+    strategy = RecordingUniform([[50, 0.0, 0, 0]])
+    env = StartStateWrapper(CountdownEnv(truncate_at=4), strategy)
+    env.reset()
+    for _ in range(4):
+        env.step(np.zeros(2))
+    assert strategy.updates == [(0, 4, False)]
+
+
+def test_wrapper_passes_explicit_options_through_unreported():
+    strategy = RecordingUniform([[3, 0.0, 0, 0]])
+    fake = CountdownEnv()
+    env = StartStateWrapper(fake, strategy)
+    options = {"state": np.array([2.0, 0.0, 0.0, 0.0])}
+    obs, info = env.reset(options=options)
+    assert fake.reset_options[-1] is options and info["start_index"] == NO_STATE
+    env.step(np.zeros(2))
+    _, _, terminated, _, _ = env.step(np.zeros(2))
+    assert terminated and strategy.updates == []
+
+
+def test_wrapper_p0_uses_the_env_plain_reset():
+    fake = CountdownEnv(default_steps=2)
+    env = StartStateWrapper(fake, P0Start())
+    obs, info = env.reset(seed=1)
+    assert fake.reset_options[-1] is None and info["start_index"] == NO_STATE
+    assert obs[0] == 2.0
+
+
+def test_wrapper_seeding_reproduces_start_sequence():
+    states = np.arange(40, dtype=np.float64).reshape(10, 4) + 10.0
+
+    def start_indices(seed):
+        env = StartStateWrapper(CountdownEnv(), UniformSS(states))
+        first = env.reset(seed=seed)[1]["start_index"]
+        return [first] + [env.reset()[1]["start_index"] for _ in range(19)]
+
+    assert start_indices(5) == start_indices(5)
+    assert start_indices(5) != start_indices(6)
+
+
+def test_wrapper_treats_empty_options_as_no_options():
+    # some vector-env drivers pass options={} on every reset: the strategy still chooses the start
+    strategy = RecordingUniform([[3, 0.0, 0, 0]])
+    fake = CountdownEnv()
+    env = StartStateWrapper(fake, strategy)
+    obs, info = env.reset(options={})
+    assert info["start_index"] == 0 and obs[0] == 3.0
