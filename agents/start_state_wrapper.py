@@ -61,12 +61,16 @@ class StartStateWrapper(gymnasium.Wrapper):
         return obs, info
 
     def state_dict(self) -> dict[str, Any]:
-        """The wrapper's generator and its strategy's learned state, for resuming between episodes."""
-        return {"rng": self._rng.bit_generator.state, "strategy": self.strategy.state_dict()}
+        """The wrapper's generator, current episode and its strategy's learned state, for a resume."""
+        return {"rng": self._rng.bit_generator.state, "strategy": self.strategy.state_dict(),
+                "start_index": self.start_index, "episode_length": self.episode_length,
+                "report_pending": self._report_pending}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self._rng.bit_generator.state = state["rng"]
         self.strategy.load_state_dict(state["strategy"])
+        self.start_index, self.episode_length = state["start_index"], state["episode_length"]
+        self._report_pending = state["report_pending"]
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         obs, reward, terminated, truncated, info = self.env.step(action)

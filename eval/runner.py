@@ -89,7 +89,8 @@ class RunConfig:
             raise ValueError(f"demos must be 500 or 7500, got {self.demos!r}")
 
     def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        """Plain JSON values (tuples become lists), as written to config.json."""
+        return json.loads(json.dumps(dataclasses.asdict(self)))
 
 
 def candidate_states(config: RunConfig) -> np.ndarray:
@@ -246,7 +247,9 @@ class Run:
         self.env.load_state_dict(state["wrapper"])
         self.rng.bit_generator.state = state["rng"]
         self.env.unwrapped.np_random.bit_generator.state = state["env_rng"]
+        # Checkpoints are taken right after a reset, where the observation is the whole physics state.
         self.obs = state["obs"]
+        self.env.unwrapped.set_state(self.obs[:2], self.obs[2:])
         self.write_results()  # drop rows written after the checkpoint, so the files agree with it
 
 

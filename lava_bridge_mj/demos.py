@@ -11,7 +11,6 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
-import zipfile
 from importlib import resources
 from pathlib import Path
 
@@ -108,12 +107,17 @@ def load_demos(size: int = 500, path: str | Path | None = None) -> dict[str, np.
     else:
         source, expected = Path(path), None
     try:
-        with source.open("rb") as f, np.load(f, allow_pickle=False) as archive:
-            demos = {name: archive[name] for name in archive.files}
+        with source.open("rb") as f:
+            archive = np.load(f, allow_pickle=False)
+            if not isinstance(archive, np.lib.npyio.NpzFile):
+                raise ValueError("it holds a single array, not an .npz archive of named arrays")
+            with archive:
+                demos = {name: archive[name] for name in archive.files}
     except FileNotFoundError:
         raise ValueError(f"demo file {source} does not exist") from None
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as error:
-        raise ValueError(f"demo file {source} is not a readable .npz archive ({error})") from None
+    except Exception as error:  # a damaged archive fails in zlib, zipfile, the .npy header parser, ...
+        raise ValueError(f"demo file {source} is not a readable .npz archive "
+                         f"({type(error).__name__}: {error})") from None
     check_demos(demos, str(source))
     if expected is not None and content_hash(demos) != expected:
         raise ValueError(f"demo file {source} is corrupt: its content hash differs from the one "

@@ -18,10 +18,8 @@ from lava_bridge_mj.starts import START_NAMES, start_distribution
 MAX_EPISODE_STEPS = 500
 """The paper's horizon; `gymnasium.make` adds the TimeLimit."""
 RESET_OPTION_KEYS = ("state", "qpos", "qvel", "start")
-WALL_PENETRATION_TOLERANCE = 1.0
-"""A state may overlap a wall by less than this fraction of the ball radius (its centre stays out):
-soft contacts and discrete steps let a ball hitting a wall sink in by up to a few centimetres, and
-every state a trajectory visits must reset cleanly."""
+LAVA, GOAL = 1, 2
+"""What a contact with a geom means (0: nothing, e.g. a wall)."""
 
 
 class LavaBridgeEnv(gymnasium.Env):
@@ -104,12 +102,10 @@ class LavaBridgeEnv(gymnasium.Env):
         self.dt = self.layout.control_dt
 
         geom_id = lambda name: mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, name)  # noqa: E731
-        # geom id -> kind lookups, so classifying a contact is one fancy-index
-        self._is_lava = np.zeros(self.model.ngeom, dtype=bool)
-        self._is_lava[[geom_id(n) for n in self.layout.lava_pits]] = True
-        self._is_wall = np.zeros(self.model.ngeom, dtype=bool)
-        self._is_wall[[geom_id(n) for n in self.layout.walls]] = True
-        self._goal_geom = geom_id("goal")
+        # geom id -> what touching it means, so classifying all contacts is one fancy-index
+        self._touch_event = np.zeros(self.model.ngeom, dtype=np.int8)
+        self._touch_event[[geom_id(n) for n in self.layout.lava_pits]] = LAVA
+        self._touch_event[geom_id("goal")] = GOAL
         self.start_distributions = {name: start_distribution(self.layout, name) for name in START_NAMES}
 
         hx, hy = self.layout.half_extent
@@ -123,13 +119,14 @@ class LavaBridgeEnv(gymnasium.Env):
     # --- named physics accessors ---------------------------------------------------------------
     def lava_contact(self, data: mujoco.MjData | None = None) -> bool:
         """True when the ball's footprint touches a lava pit, read from MuJoCo's contacts of `data`."""
-        data = self.data if data is None else data
-        return data.ncon > 0 and bool(self._is_lava[data.contact.geom].any())
+        return LAVA in self._touch_events(self.data if data is None else data)
 
     def goal_contact(self, data: mujoco.MjData | None = None) -> bool:
         """True when the ball's centre is within goal_radius of the goal, read from MuJoCo's contacts."""
-        data = self.data if data is None else data
-        return data.ncon > 0 and bool((data.contact.geom == self._goal_geom).any())
+        return GOAL in self._touch_events(self.data if data is None else data)
+
+    def _touch_events(self, data: mujoco.MjData) -> np.ndarray:
+        return self._touch_event[data.contact.geom].ravel() if data.ncon else self._touch_event[:0]
 
     def get_state(self) -> np.ndarray:
         """The physics state (x, y, vx, vy): a copy, identical to the observation."""
@@ -141,8 +138,10 @@ class LavaBridgeEnv(gymnasium.Env):
         Raises ValueError, leaving the current state untouched, for a misshapen or non-finite state,
         one outside the maze, overlapping a wall or touching lava.
         """
-        qpos, qvel = self._check_state(qpos, qvel)
-        mujoco.mj_resetData(self.model, self.data)  # also clears warm starts: reset is deterministic
+        self._set_checked_state(*self._check_state(qpos, qvel))
+
+    def _set_checked_state(self, qpos: np.ndarray, qvel: np.ndarray) -> None:
+        mujoco.mj_resetData(self.model, self.data)  # zero time, controls and solver state: deterministic
         self.data.qpos[:] = qpos
         self.data.qvel[:] = qvel
         # step() expects position- and velocity-dependent quantities (contacts) to be current
@@ -153,8 +152,11 @@ class LavaBridgeEnv(gymnasium.Env):
         qvel = self._as_vector("qvel", qvel)
         hx, hy = self.layout.half_extent
         x, y = qpos
+        # A ball may overlap a wall by less than its radius (soft contacts let a ball that hits a
+        # wall sink in by millimetres, and every visited state must reset); its centre may not.
         if abs(x) > hx or abs(y) > hy:
-            raise ValueError(f"state position ({x:g}, {y:g}) is outside the maze (|x| <= {hx:g}, |y| <= {hy:g})")
+            raise ValueError(f"state position ({x:g}, {y:g}) is inside a wall or outside the maze: the ball's "
+                             f"centre must satisfy |x| <= {hx:g} and |y| <= {hy:g}")
         v = self.layout.top_speed
         if np.abs(qvel).max() > v:
             raise ValueError(f"state velocity {qvel} exceeds the top speed {v:g} m/s on an axis (gear / damping)")
@@ -164,34 +166,34 @@ class LavaBridgeEnv(gymnasium.Env):
         mujoco.mj_fwdPosition(self.model, probe)  # kinematics and collision only
         if self.lava_contact(probe):
             raise ValueError(f"state position ({x:g}, {y:g}) touches lava")
-        limit = -WALL_PENETRATION_TOLERANCE * self.layout.ball_radius
-        for contact in probe.contact:
-            if self._is_wall[contact.geom].any() and contact.dist < limit:
-                wall = mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, int(max(contact.geom)))
-                raise ValueError(f"state position ({x:g}, {y:g}) is inside {wall} "
-                                 f"(overlap {-contact.dist:.3g} m > {-limit:g} m)")
         return qpos, qvel
 
     @staticmethod
-    def _as_vector(name: str, value: Any) -> np.ndarray:
+    def _as_vector(name: str, value: Any, size: int = 2) -> np.ndarray:
         try:
             vector = np.array(value, dtype=np.float64)
         except (TypeError, ValueError):
-            raise ValueError(f"{name} must be 2 numbers, got {value!r}") from None
-        if vector.shape != (2,):
-            raise ValueError(f"{name} must have shape (2,), got shape {vector.shape}: {value!r}")
+            raise ValueError(f"{name} must be {size} numbers, got {value!r}") from None
+        if vector.shape != (size,):
+            raise ValueError(f"{name} must have shape ({size},), got shape {vector.shape}: {value!r}")
         if not np.isfinite(vector).all():
             raise ValueError(f"{name} must be finite, got {vector}")
         return vector
 
     # --- gymnasium API -------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        start = self._parse_reset_options(options or {})  # raises before anything changes
         super().reset(seed=seed)
-        qpos, qvel = self._start_from_options(options or {})
-        self.set_state(qpos, qvel)
+        if isinstance(start, str):  # start distributions only hold valid states (Layout checks its discs)
+            state = self.start_distributions[start].sample(self.np_random)
+            start = (state[:2], state[2:])
+        self._set_checked_state(*start)
         return self.get_state(), {"is_success": False, "lava": False}
 
-    def _start_from_options(self, options: dict[str, Any]) -> tuple[Any, Any]:
+    def _parse_reset_options(self, options: dict[str, Any]) -> str | tuple[np.ndarray, np.ndarray]:
+        """A start distribution's name, or a checked (qpos, qvel); ValueError for bad options."""
+        if not isinstance(options, dict):
+            raise ValueError(f"reset options must be a dict, got {type(options).__name__}")
         unknown = set(options) - set(RESET_OPTION_KEYS)
         if unknown:
             raise ValueError(f"unknown reset options {sorted(unknown)}; expected some of {RESET_OPTION_KEYS}")
@@ -201,23 +203,20 @@ class LavaBridgeEnv(gymnasium.Env):
         if "qvel" in options and "qpos" not in options:
             raise ValueError("reset option 'qvel' needs 'qpos' too")
         if "state" in options:
-            state = np.asarray(options["state"], dtype=np.float64)
-            if state.shape != (4,):
-                raise ValueError(f"state must have shape (4,) = (x, y, vx, vy), got shape {state.shape}")
-            return state[:2], state[2:]
+            state = self._as_vector("state", options["state"], size=4)
+            return self._check_state(state[:2], state[2:])
         if "qpos" in options:
-            return options["qpos"], options.get("qvel", (0.0, 0.0))
+            return self._check_state(options["qpos"], options.get("qvel", (0.0, 0.0)))
         name = options.get("start", "p0")
-        if name not in self.start_distributions:
+        if not isinstance(name, str) or name not in self.start_distributions:
             raise ValueError(f"unknown start distribution {name!r}; expected one of {START_NAMES}")
-        state = self.start_distributions[name].sample(self.np_random)
-        return state[:2], state[2:]
+        return name
 
     def step(self, action):
         action = np.asarray(action, dtype=np.float64)
         if action.shape != (2,):
             raise ValueError(f"action must have shape (2,), got shape {action.shape}")
-        if not math.isfinite(action[0] + action[1]):
+        if not (math.isfinite(action[0]) and math.isfinite(action[1])):
             raise ValueError(f"action must be finite, got {action}")
         model, data = self.model, self.data
         data.ctrl[:] = action  # MuJoCo clips to the actuators' ctrlrange [-1, 1]
@@ -227,9 +226,10 @@ class LavaBridgeEnv(gymnasium.Env):
         for _ in range(self.frame_skip):
             mujoco.mj_step2(model, data)
             mujoco.mj_step1(model, data)
-            if data.ncon:
-                lava, success = self.lava_contact(), self.goal_contact()
-                if lava or success:
+            if data.ncon:  # most steps have no contact at all; walls are the common one
+                events = self._touch_events(data)
+                if events.any():
+                    lava, success = LAVA in events, GOAL in events
                     break
         reward = self.goal_reward if success else self.lava_reward if lava else self.step_reward
         info = {"is_success": success, "lava": lava}

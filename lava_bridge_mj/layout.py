@@ -95,13 +95,28 @@ class Layout:
     """Physics steps per env step; the control period is timestep * frame_skip."""
 
     def __post_init__(self) -> None:
+        # accept plain tuples for discs (e.g. from a JSON config); frozen, hence object.__setattr__
+        for field in ("p0_blobs", "ood_spots"):
+            try:
+                discs = tuple(Disc(*map(float, disc)) for disc in getattr(self, field))
+            except (TypeError, ValueError):
+                raise ValueError(f"Layout.{field} must be a sequence of (x, y, radius) discs, "
+                                 f"got {getattr(self, field)!r}") from None
+            object.__setattr__(self, field, discs)
+        try:
+            goal = tuple(float(v) for v in self.goal)
+        except (TypeError, ValueError):
+            goal = ()
+        if len(goal) != 2 or not all(map(math.isfinite, goal)):
+            raise ValueError(f"Layout.goal must be two finite numbers (x, y), got {self.goal!r}")
+        object.__setattr__(self, "goal", goal)
         positive = ("room_length", "room_width", "bridge_length", "bridge_width", "wall_thickness",
                     "goal_radius", "ball_radius", "ball_mass", "damping", "gear", "timestep")
         for name in positive:
             value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"Layout.{name} must be a positive finite number, got {value!r}")
-        if not (isinstance(self.frame_skip, int) and self.frame_skip >= 1):
+        if isinstance(self.frame_skip, bool) or not (isinstance(self.frame_skip, int) and self.frame_skip >= 1):
             raise ValueError(f"Layout.frame_skip must be an integer >= 1, got {self.frame_skip!r}")
         if self.bridge_width <= 2 * self.ball_radius:
             raise ValueError(
@@ -113,11 +128,15 @@ class Layout:
             raise ValueError(f"Layout.bridge_width={self.bridge_width} must be below room_width={self.room_width}")
         if not self.p0_blobs or not self.ood_spots:
             raise ValueError("Layout.p0_blobs and Layout.ood_spots must each name at least one disc")
-        goal_room = self.goal_room
-        if goal_room.distance_to(*self.goal) > 0:
-            raise ValueError(f"Layout.goal={self.goal} must lie in the goal room {goal_room}")
+        room = self.goal_room
+        if (abs(self.goal[0] - room.x) + self.goal_radius > room.half_x
+                or abs(self.goal[1] - room.y) + self.goal_radius > room.half_y):
+            raise ValueError(f"Layout.goal={self.goal} with goal_radius={self.goal_radius} must lie "
+                             f"inside the goal room {room}")
         for field in ("p0_blobs", "ood_spots"):
             for disc in getattr(self, field):
+                if not all(map(math.isfinite, disc)) or disc.radius < 0:
+                    raise ValueError(f"Layout.{field} disc {disc} must be finite with radius >= 0")
                 if not self.disc_is_clear(disc):
                     raise ValueError(f"Layout.{field} disc {disc} overlaps a wall or lava, or leaves the start room")
 

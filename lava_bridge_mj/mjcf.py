@@ -61,6 +61,9 @@ def build_mjcf(layout: Layout) -> str:
     # A planar point mass: no gravity needed; soft contacts stiff enough to keep the ball out of walls.
     root.option.timestep = layout.timestep
     root.option.gravity = (0, 0, 0)
+    # No solver warm start: then (qpos, qvel) is the whole state, and a reset to a visited state
+    # replays the original continuation bit for bit, also while the ball presses on a wall.
+    root.option.flag.warmstart = "disable"
     root.default.geom.solref = (2 * layout.timestep, 1)
     root.default.geom.condim = 1  # frictionless: the ball slides along walls
 

@@ -1,0 +1,252 @@
+"""SAC, its networks and its replay buffer: learning on a tiny sparse task, exact targets, exact resume."""
+
+import copy
+import io
+
+import numpy as np
+import pytest
+import torch
+
+from lava_bridge_mj.agents.networks import MLP, TanhGaussianActor, TwinQ, soft_update
+from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
+from lava_bridge_mj.agents.sac import SAC, SACConfig, bellman_target
+
+SMALL = SACConfig(hidden_sizes=(64, 64), batch_size=64, learning_starts=400)
+
+
+@pytest.fixture(autouse=True)
+def one_torch_thread():
+    """Timings and results as in the project's experiments; restored so other tests are unaffected."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+class ReachRight:
+    """A 1-D sparse-reward task: x starts at 0, each step x += 0.3 * a for a in [-1, 1] (a wall at
+    x = -1); reaching x >= 1 gives +1 and terminates; 20 steps truncate. The observation is
+    (x, t / 20). A uniform random policy succeeds about 17% of the time; pushing right always wins."""
+
+    max_steps = 20
+
+    def reset(self):
+        self.x, self.t = 0.0, 0
+        return self._obs()
+
+    def step(self, action):
+        self.x = max(self.x + 0.3 * float(np.clip(action[0], -1.0, 1.0)), -1.0)
+        self.t += 1
+        terminated = self.x >= 1.0
+        return self._obs(), float(terminated), terminated, self.t >= self.max_steps
+
+    def _obs(self):
+        return np.array([self.x, self.t / self.max_steps], dtype=np.float32)
+
+
+def success_rate(policy, episodes):
+    env, wins = ReachRight(), 0
+    for _ in range(episodes):
+        obs, terminated, truncated = env.reset(), False, False
+        while not (terminated or truncated):
+            obs, _, terminated, truncated = env.step(policy(obs))
+        wins += terminated
+    return wins / episodes
+
+
+def train_on_reach_right(seed, steps, config=SMALL):
+    """The runner's loop in miniature: random actions, then act / store / one update per step."""
+    env, agent = ReachRight(), SAC(2, 1, config, seed)
+    buffer, rng = ReplayBuffer(config.buffer_size, 2, 1), np.random.default_rng(seed)
+    obs = env.reset()
+    for step in range(steps):
+        if step < config.learning_starts:
+            action = rng.uniform(-1.0, 1.0, 1).astype(np.float32)
+        else:
+            action = agent.act(obs)
+        next_obs, reward, terminated, truncated = env.step(action)
+        buffer.add(obs, action, reward, next_obs, terminated)
+        obs = env.reset() if terminated or truncated else next_obs
+        if step >= config.learning_starts:
+            agent.update(buffer.sample(config.batch_size, rng))
+    return agent
+
+
+def filled_buffer(n=500, seed=0):
+    rng, buffer = np.random.default_rng(seed), ReplayBuffer(1_000, 4, 2)
+    for _ in range(n):
+        buffer.add(rng.normal(size=4), rng.uniform(-1, 1, 2), float(rng.random() < 0.1),
+                   rng.normal(size=4), rng.random() < 0.1)
+    return buffer
+
+
+def parameters(agent):
+    return torch.cat([p.detach().flatten() for net in (agent.actor, agent.critic, agent.target_critic)
+                      for p in net.parameters()] + [agent.log_alpha.detach().view(1)])
+
+
+# --- learning -------------------------------------------------------------------------------------
+
+def test_sac_solves_a_tiny_sparse_task_that_random_actions_rarely_solve():
+    rng = np.random.default_rng(0)
+    random_rate = success_rate(lambda obs: rng.uniform(-1.0, 1.0, 1), 1_000)
+    agent = train_on_reach_right(seed=0, steps=1_500)
+    assert random_rate < 0.3
+    assert success_rate(lambda obs: agent.act(obs, deterministic=True), 1) == 1.0  # the env is deterministic
+    assert success_rate(agent.act, 100) >= 0.9
+
+
+def test_update_returns_finite_scalar_metrics():
+    agent, buffer = SAC(4, 2, SMALL, seed=0), filled_buffer()
+    metrics = agent.update(buffer.sample(64, np.random.default_rng(0)))
+    assert set(metrics) == {"critic_loss", "actor_loss", "alpha", "q_mean", "entropy"}
+    assert all(isinstance(v, float) and np.isfinite(v) for v in metrics.values())
+    assert metrics["alpha"] == pytest.approx(SMALL.initial_alpha)
+
+
+# --- the Bellman target: termination cuts the future, truncation bootstraps --------------------------
+
+def test_bellman_target_by_hand():
+    reward = torch.tensor([1.0, 1.0, -1.0, 0.0])
+    terminated = torch.tensor([0.0, 1.0, 1.0, 0.0])
+    next_value = torch.tensor([2.0, 2.0, 5.0, -3.0])
+    expected = torch.tensor([1.0 + 0.9 * 2.0, 1.0, -1.0, 0.9 * -3.0])
+    torch.testing.assert_close(bellman_target(reward, terminated, next_value, gamma=0.9), expected)
+
+
+def test_sac_td_target_bootstraps_truncated_but_not_terminated_transitions():
+    agent = SAC(4, 2, SACConfig(hidden_sizes=(16, 16), gamma=0.9, initial_alpha=0.5), seed=3)
+    # Two copies of one transition: the first truncated (terminated = 0), the second terminated.
+    batch = {"obs": torch.ones(2, 4), "action": torch.zeros(2, 2), "reward": torch.tensor([0.5, 0.5]),
+             "next_obs": torch.full((2, 4), 0.3), "terminated": torch.tensor([0.0, 1.0])}
+    noise_state = agent.generator.get_state()
+    target = agent.td_target(batch)
+
+    agent.generator.set_state(noise_state)  # redraw the same next actions by hand
+    with torch.no_grad():
+        next_action, next_log_prob = agent.actor(batch["next_obs"], generator=agent.generator)
+        q1, q2 = agent.target_critic.both(batch["next_obs"], next_action)
+        soft_value = torch.minimum(q1, q2) - 0.5 * next_log_prob
+    torch.testing.assert_close(target[0], 0.5 + 0.9 * soft_value[0])
+    torch.testing.assert_close(target[1], torch.tensor(0.5))
+    assert abs(soft_value[0].item()) > 1e-3  # otherwise the first check could not tell the two apart
+
+
+# --- networks --------------------------------------------------------------------------------------
+
+def test_mlp_and_twin_q_shapes():
+    net = MLP(3, 5, (7, 11))
+    assert [m.out_features for m in net if isinstance(m, torch.nn.Linear)] == [7, 11, 5]
+    q = TwinQ(4, 2, (8,))
+    q1, q2 = q.both(torch.randn(6, 4), torch.randn(6, 2))
+    assert q1.shape == q2.shape == (6,) and not torch.equal(q1, q2)
+    torch.testing.assert_close(q(torch.randn(6, 4), torch.randn(6, 2)).shape, torch.Size([6]))
+
+
+def test_tanh_gaussian_log_prob_matches_torch_distributions():
+    torch.manual_seed(0)
+    actor = TanhGaussianActor(4, 3, (32,))
+    obs = torch.randn(500, 4)
+    action, log_prob = actor(obs, generator=torch.Generator().manual_seed(0))
+    mean, log_std = actor.distribution(obs)
+    reference = torch.distributions.TransformedDistribution(
+        torch.distributions.Independent(torch.distributions.Normal(mean, log_std.exp()), 1),
+        [torch.distributions.TanhTransform()])
+    inside = action.abs().max(-1).values < 0.99  # the reference's atanh is unstable at the bound
+    assert inside.sum() > 400
+    torch.testing.assert_close(log_prob[inside], reference.log_prob(action)[inside], rtol=1e-4, atol=1e-4)
+    torch.testing.assert_close(actor.log_prob(obs, action)[inside], log_prob[inside], rtol=1e-3, atol=1e-3)
+    assert action.abs().max() <= 1.0 and torch.isfinite(log_prob).all()
+
+
+def test_deterministic_action_is_tanh_of_mean():
+    actor = TanhGaussianActor(4, 2)
+    obs = torch.randn(3, 4)
+    action, _ = actor(obs, deterministic=True)
+    torch.testing.assert_close(action, torch.tanh(actor.distribution(obs)[0]))
+
+
+def test_soft_update_interpolates():
+    source, target = torch.nn.Linear(3, 2), torch.nn.Linear(3, 2)
+    before = copy.deepcopy(target)
+    soft_update(target, source, tau=0.25)
+    torch.testing.assert_close(target.weight, 0.75 * before.weight + 0.25 * source.weight)
+    soft_update(target, source, tau=1.0)
+    torch.testing.assert_close(target.bias, source.bias)
+
+
+# --- replay buffer ---------------------------------------------------------------------------------
+
+def test_replay_buffer_overwrites_oldest_when_full():
+    buffer = ReplayBuffer(3, obs_dim=1, act_dim=1)
+    for i in range(5):
+        buffer.add([i], [0.1 * i], float(i), [i + 1], terminated=(i == 4))
+    assert len(buffer) == 3
+    assert buffer.obs[:, 0].tolist() == [3.0, 4.0, 2.0]  # 0 and 1 were overwritten in place
+    batch = buffer.sample(200, np.random.default_rng(0))
+    assert set(batch["obs"][:, 0].tolist()) == {2.0, 3.0, 4.0}
+    torch.testing.assert_close(batch["next_obs"], batch["obs"] + 1)
+    torch.testing.assert_close(batch["reward"], batch["obs"][:, 0])
+    torch.testing.assert_close(batch["terminated"], (batch["obs"][:, 0] == 4).float())
+    assert all(t.dtype == torch.float32 for t in batch.values())
+    assert batch["action"].shape == (200, 1) and batch["reward"].shape == (200,)
+
+
+def test_replay_buffer_state_dict_round_trip():
+    buffer = filled_buffer(n=1_234)  # wrapped around: pos != size
+    restored = ReplayBuffer(1_000, 4, 2)
+    restored.load_state_dict(buffer.state_dict())
+    assert (len(restored), restored.pos) == (len(buffer), buffer.pos) == (1_000, 234)
+    for name, value in buffer.sample(64, np.random.default_rng(7)).items():
+        torch.testing.assert_close(restored.sample(64, np.random.default_rng(7))[name], value)
+    for b in (buffer, restored):
+        b.add(np.ones(4), np.ones(2), 1.0, np.ones(4), True)
+    assert np.array_equal(buffer.obs, restored.obs) and buffer.pos == restored.pos == 235
+
+
+def test_replay_buffer_sampling_is_seeded():
+    buffer = filled_buffer()
+    a, b = (buffer.sample(32, np.random.default_rng(1)) for _ in range(2))
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    with pytest.raises(ValueError):
+        ReplayBuffer(10, 4, 2).sample(1, np.random.default_rng(0))
+
+
+# --- reproducibility and exact resume --------------------------------------------------------------
+
+def run_updates(seed, n, buffer):
+    agent, rng = SAC(4, 2, SMALL, seed=seed), np.random.default_rng(seed)
+    for _ in range(n):
+        agent.update(buffer.sample(64, rng))
+    return agent
+
+
+def test_same_seed_gives_identical_parameters_whatever_the_global_rng():
+    buffer = filled_buffer()
+    torch.manual_seed(123)
+    first = run_updates(0, 20, buffer)
+    torch.rand(1000)  # disturb torch's global RNG: the agent must not depend on it
+    second = run_updates(0, 20, buffer)
+    other = run_updates(1, 20, buffer)
+    assert torch.equal(parameters(first), parameters(second))
+    assert not torch.equal(parameters(first), parameters(other))
+
+
+def test_state_dict_round_trip_gives_identical_actions_and_next_update():
+    buffer, rng = filled_buffer(), np.random.default_rng(0)
+    agent = run_updates(0, 10, buffer)
+    checkpoint = io.BytesIO()
+    torch.save(agent.state_dict(), checkpoint)
+    checkpoint.seek(0)
+    restored = SAC(4, 2, SMALL, seed=99)
+    restored.load_state_dict(torch.load(checkpoint))
+    assert torch.equal(parameters(restored), parameters(agent))
+
+    obs = np.random.default_rng(1).normal(size=(5, 4)).astype(np.float32)
+    np.testing.assert_array_equal(restored.act(obs, deterministic=True), agent.act(obs, deterministic=True))
+    np.testing.assert_array_equal(restored.act(obs), agent.act(obs))  # same noise: generator restored
+    batch = buffer.sample(64, rng)
+    assert restored.update(batch) == agent.update(batch)
+    assert torch.equal(parameters(restored), parameters(agent))
+    restored_adam = restored.actor_optimizer.state_dict()["state"][0]["exp_avg"]
+    assert torch.equal(restored_adam, agent.actor_optimizer.state_dict()["state"][0]["exp_avg"])
