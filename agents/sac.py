@@ -86,6 +86,11 @@ class SAC:
         self.critic_optimizer = torch.optim.Adam(self.critic.parameters(), lr=config.lr, fused=True)
         self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=config.lr, fused=True)
 
+    @property
+    def alpha(self) -> float:
+        """The current entropy coefficient exp(log_alpha)."""
+        return self.log_alpha.exp().item()
+
     @torch.no_grad()
     def act(self, obs: np.ndarray, deterministic: bool = False) -> np.ndarray:
         """Action(s) in [-1, 1] for one observation (obs_dim,) or a batch (n, obs_dim)."""
@@ -112,7 +117,7 @@ class SAC:
         critic_loss.backward()
         self.critic_optimizer.step()
 
-        # Actor: maximise min Q - alpha log pi. Critics frozen: no weight gradients built for them (~10% faster).
+        # Actor: maximise min Q - alpha log pi. Critics frozen: no weight gradients for them (~10% faster).
         alpha = self.log_alpha.exp().detach()
         new_action, log_prob = self.actor(obs, generator=self.generator)
         self.critic.requires_grad_(False)
