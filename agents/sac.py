@@ -25,8 +25,9 @@ from .networks import TanhGaussianActor, TwinQ, soft_update
 class SACConfig:
     """SAC hyperparameters. Defaults follow the paper's protocol where it gives one."""
 
-    hidden_sizes: tuple[int, ...] = (256, 256)
-    """Hidden layer widths of the actor and of each critic (placeholder until calibrated on the task)."""
+    hidden_sizes: tuple[int, ...] = (64, 64)
+    """Hidden layer widths of the actor and of each critic. 64 units learn LavaBridge-v0 (AuxSS reached
+    p0 success on a tuning seed within 40k steps) at about 4x the update rate of 256 units on 2 CPU cores."""
     lr: float = 3e-4
     """Adam learning rate of actor, critics and entropy coefficient."""
     gamma: float = 0.99
