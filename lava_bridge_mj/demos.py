@@ -3,12 +3,11 @@
 The shipped sets (`assets/demos_500.npz`, `assets/demos_7500.npz`) are whole expert episodes from p0,
 concatenated until the size is reached; the last episode is cut there and marked truncated. The 500
 set is 3 trajectories, as in the paper. `assets/demos.json` records each set's seed and a SHA-256 of
-its arrays; `python -m lava_bridge_mj.demos --check` regenerates both and compares them bit for bit.
+its arrays; `python -m lava_bridge_mj demos --check` regenerates both and compares them bit for bit.
 """
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
 from importlib import resources
@@ -125,31 +124,25 @@ def load_demos(size: int = 500, path: str | Path | None = None) -> dict[str, np.
     return demos
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(
-        description="Regenerate the shipped expert demonstration sets from their seeds.")
-    parser.add_argument("--check", action="store_true",
-                        help="regenerate in memory and exit 1 unless identical to the shipped files")
-    args = parser.parse_args(argv)
+def regenerate_demos(check: bool = False) -> bool:
+    """Regenerate the shipped sets from their seeds: write them, or with `check` only compare.
+
+    Returns True when (checking) every shipped set is bit-identical to its regeneration.
+    """
     assets = Path(str(resources.files("lava_bridge_mj.assets")))
-    manifest = {}
+    manifest, identical = {}, True
     for size in SHIPPED_SIZES:
         demos = generate_demos(size, SHIPPED_SEEDS[size])
         digest = content_hash(demos)
         episodes = int(demos["episode_ids"][-1]) + 1
         manifest[str(size)] = {"seed": SHIPPED_SEEDS[size], "episodes": episodes, "sha256": digest}
-        if args.check:
-            shipped = load_demos(size)
-            same = content_hash(shipped) == digest
+        if check:
+            same = content_hash(load_demos(size)) == digest
+            identical &= same
             print(f"demos_{size}: {'identical' if same else 'DIFFERENT'} ({episodes} episodes)")
-            if not same:
-                raise SystemExit(1)
         else:
             save_demos(demos, assets / f"demos_{size}.npz")
             print(f"wrote demos_{size}.npz: {episodes} episodes, sha256 {digest[:12]}")
-    if not args.check:
+    if not check:
         (assets / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
-
-
-if __name__ == "__main__":
-    main()
+    return identical

@@ -1,7 +1,7 @@
 """Generate the Lava Bridge MJCF model from a `Layout`, and load compiled models.
 
 The default layout's model is also shipped as `assets/lava_bridge.xml` (a test checks the two agree);
-`python -m lava_bridge_mj.mjcf` rewrites it after a change to the defaults.
+`python -m lava_bridge_mj model` rewrites it after a change to the defaults.
 
 Collision design (why the bits are what they are):
 - The ball collides with walls (physical contacts) and with lava (detected, never pushed back).
@@ -20,7 +20,6 @@ Collision design (why the bits are what they are):
 
 from __future__ import annotations
 
-import argparse
 import functools
 import math
 from importlib import resources
@@ -134,18 +133,15 @@ def load_model(layout: Layout) -> mujoco.MjModel:
     return mujoco.MjModel.from_xml_string(model_xml(layout))
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description="Regenerate assets/lava_bridge.xml from the default Layout.")
-    parser.add_argument("--check", action="store_true", help="exit 1 if the shipped file is out of date")
-    args = parser.parse_args()
+def regenerate_model(check: bool = False) -> bool:
+    """Rewrite the shipped XML from the default Layout, or with `check` report whether it is current."""
     xml = build_mjcf(Layout())
     path = resources.files("lava_bridge_mj.assets").joinpath(ASSET_NAME)
-    if args.check:
-        raise SystemExit(0 if path.read_text() == xml else 1)
+    if check:
+        current = path.read_text() == xml
+        print(f"{ASSET_NAME}: {'up to date' if current else 'OUT OF DATE'}")
+        return current
     with open(str(path), "w") as f:
         f.write(xml)
     print(f"wrote {path}")
-
-
-if __name__ == "__main__":
-    main()
+    return True
