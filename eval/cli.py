@@ -2,11 +2,13 @@
 
     lava-bridge-bench --method auxss                      # the quick default run
     lava-bridge-bench --method sac --steps 300000         # the paper's protocol for plain SAC
+    lava-bridge-bench --method auxss --config my.json     # any RunConfig field, e.g. SAC sizes
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 from pathlib import Path
@@ -39,72 +41,106 @@ def build_parser() -> argparse.ArgumentParser:
         description="Train SAC on LavaBridge-v0 from a start-state distribution, evaluating the "
                     "deterministic policy's success rate from p0 (the MDP's starts) and ood "
                     "(unseen starts) as it learns. Writes a run directory with config.json, "
-                    "metrics.csv, start_weights.npz, checkpoints and policy snapshots.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                    "metrics.csv, start_weights.npz, checkpoints and policy snapshots. "
+                    "Ctrl-C (or SIGTERM) stops after writing a checkpoint; --resume continues.")
     parser.add_argument("--method", required=True, choices=METHODS,
                         help="sac: plain SAC from p0; auxss: the paper's episode-length start-state "
                              "safety; omega_ss: random-policy Monte-Carlo safety; uniform_ss: uniform "
                              "over demo states; goaldist_ss: goal-distance weighted, flattening over time")
-    parser.add_argument("--seed", type=_seed, default=DEFAULTS.seed, help="random seed of the run")
-    parser.add_argument("--steps", type=_positive_int, default=DEFAULTS.steps,
-                        help="online env steps (the paper's protocol: 300000)")
-    parser.add_argument("--demos", type=int, choices=(500, 7500), default=DEFAULTS.demos,
-                        help="shipped demo set the candidate start states come from")
-    parser.add_argument("--eval-every", type=_positive_int, default=DEFAULTS.eval_every,
-                        help="evaluate, snapshot the policy and checkpoint every this many steps")
-    parser.add_argument("--eval-episodes", type=_positive_int, default=DEFAULTS.eval_episodes,
-                        help="evaluation episodes per start distribution (fixed seeds)")
+    parser.add_argument("--seed", type=_seed, help=f"random seed of the run (default: {DEFAULTS.seed})")
+    parser.add_argument("--steps", type=_positive_int,
+                        help=f"online env steps (default: {DEFAULTS.steps}; the paper's protocol: 300000)")
+    parser.add_argument("--demos", type=int, choices=(500, 7500),
+                        help=f"shipped demo set the candidate start states come from (default: {DEFAULTS.demos})")
+    parser.add_argument("--eval-every", type=_positive_int,
+                        help=f"evaluate, snapshot the policy and checkpoint every this many steps "
+                             f"(default: {DEFAULTS.eval_every})")
+    parser.add_argument("--eval-episodes", type=_positive_int,
+                        help=f"evaluation episodes per start distribution, fixed seeds (default: {DEFAULTS.eval_episodes})")
+    parser.add_argument("--config", type=Path,
+                        help="JSON file of RunConfig fields, e.g. {\"sac\": {\"hidden_sizes\": [256, 256]}, "
+                             "\"strategy\": {\"sigma\": 0.2}}; options given here override it")
     parser.add_argument("--out", type=Path, default=None,
                         help="run directory (default: runs/METHOD/seedSEED)")
-    parser.add_argument("--resume", action="store_true",
-                        help="continue the run in --out from its last checkpoint")
+    written = parser.add_mutually_exclusive_group()
+    written.add_argument("--resume", action="store_true",
+                         help="continue the run in --out from its last checkpoint (same configuration)")
+    written.add_argument("--overwrite", action="store_true",
+                         help="replace the run already in --out instead of refusing")
     parser.add_argument("--video", action="store_true",
                         help="after training, write rollouts.mp4 of the policy from p0 and ood")
     parser.add_argument("--threads", type=_positive_int, default=1,
-                        help="torch CPU threads (1 avoids oversubscription when runs share cores)")
+                        help="torch CPU threads; 1 avoids oversubscription when runs share cores (default: 1)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     return parser
+
+
+def _config_from(args: argparse.Namespace, parser: argparse.ArgumentParser) -> RunConfig:
+    values: dict = {}
+    if args.config is not None:
+        try:
+            values = json.loads(args.config.read_text())
+        except OSError as error:
+            parser.error(f"--config {args.config} cannot be read: {error.strerror}")
+        except ValueError as error:
+            parser.error(f"--config {args.config} is not valid JSON: {error}")
+        if not isinstance(values, dict):
+            parser.error(f"--config {args.config} must hold a JSON object of RunConfig fields")
+    values["method"] = args.method
+    for name in ("seed", "steps", "demos", "eval_every", "eval_episodes"):
+        if getattr(args, name) is not None:
+            values[name] = getattr(args, name)
+    try:
+        return RunConfig.from_dict(values, source=f"--config {args.config}" if args.config else "options")
+    except ValueError as error:
+        parser.error(str(error))
+
+
+def _check_writable(out: Path, parser: argparse.ArgumentParser) -> None:
+    if out.exists() and not out.is_dir():
+        parser.error(f"--out {out} exists and is not a directory")
+    existing = out
+    while not existing.exists():  # the nearest existing ancestor is where the directory will be made
+        existing = existing.parent
+    if not existing.is_dir() or not os.access(existing, os.W_OK | os.X_OK):
+        parser.error(f"--out {out} cannot be written: {existing} is not a writable directory")
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    out = args.out or Path("runs") / args.method / f"seed{args.seed}"
-    if out.exists() and not out.is_dir():
-        parser.error(f"--out {out} exists and is not a directory")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        parser.error(f"--out {out} cannot be created: {error.strerror}")
-    if not os.access(out, os.W_OK):
-        parser.error(f"--out {out} is not writable")
-    if (out / "config.json").exists() and not args.resume:
-        parser.error(f"--out {out} already holds a run; pass --resume to continue it or choose another --out")
+    config = _config_from(args, parser)
+    out = args.out or Path("runs") / config.method / f"seed{config.seed}"
+    _check_writable(out, parser)
+    if (out / "config.json").exists() and not (args.resume or args.overwrite):
+        parser.error(f"--out {out} already holds a run; pass --resume to continue it, --overwrite to "
+                     "replace it, or choose another --out")
 
     import torch  # after argument checks, so --help and usage errors are instant
 
     torch.set_num_threads(args.threads)
-    from lava_bridge_mj.eval.runner import train
+    from lava_bridge_mj.eval.runner import RunInterrupted, train
 
-    config = RunConfig(method=args.method, seed=args.seed, steps=args.steps, demos=args.demos,
-                       eval_every=args.eval_every, eval_episodes=args.eval_episodes)
     try:
-        run = train(config, out, resume=args.resume, progress=not args.no_progress)
-    except ValueError as error:  # e.g. a checkpoint from another configuration
+        run = train(config, out, resume=args.resume, overwrite=args.overwrite, progress=not args.no_progress)
+    except RunInterrupted as stop:
+        print(f"lava-bridge-bench: {stop}; continue with --resume --out {out}", file=sys.stderr)
+        return 128 + stop.signum
+    except ValueError as error:  # the directory is in use or holds another run, a foreign checkpoint, ...
         print(f"lava-bridge-bench: error: {error}", file=sys.stderr)
         return 2
     last = run.rows[-1]
-    print(f"{args.method} seed {args.seed}: {last['step']} steps, success p0 {last['success_p0']:.2f}, "
+    print(f"{config.method} seed {config.seed}: {last['step']} steps, success p0 {last['success_p0']:.2f}, "
           f"ood {last['success_ood']:.2f} -> {out}")
     if args.video:
         import gymnasium
 
         import lava_bridge_mj
-        from lava_bridge_mj.eval.video import record_rollouts
+        from lava_bridge_mj.eval import video
 
         env = gymnasium.make(lava_bridge_mj.ENV_ID, render_mode="rgb_array")
         try:
-            record_rollouts(env, lambda obs: run.agent.act(obs, deterministic=True), out / "rollouts.mp4")
+            video.record_rollouts(env, lambda obs: run.agent.act(obs, deterministic=True), out / "rollouts.mp4")
         finally:
             env.close()
         print(f"wrote {out / 'rollouts.mp4'}")

@@ -20,7 +20,12 @@ import csv
 import dataclasses
 import io
 import json
+import os
+import shutil
+import signal
+import threading
 import time
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +38,7 @@ import lava_bridge_mj
 from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
 from lava_bridge_mj.agents.sac import SAC, SACConfig
 from lava_bridge_mj.agents.start_state_wrapper import StartStateWrapper
-from lava_bridge_mj.agents.start_strategies import make_start_strategy
+from lava_bridge_mj.agents.start_strategies import STRATEGY_PARAMS, make_start_strategy
 from lava_bridge_mj.eval.atomic import atomic_write, atomic_write_text
 from lava_bridge_mj.eval.evaluate import evaluate
 
@@ -49,6 +54,20 @@ METHODS = tuple(METHOD_STRATEGIES)
 METRIC_FIELDS = ("step", "episodes", "success_p0", "success_ood", "return_p0", "return_ood",
                  "train_return", "train_success", "q_mean", "alpha", "critic_loss", "wall_time")
 CHECKPOINT_VERSION = 1
+RUN_FILES = ("config.json", "metrics.csv", "start_weights.npz", "checkpoint.pt", "final.pt", "rollouts.mp4")
+"""What a run directory holds besides policies/: what --overwrite removes."""
+
+
+class RunInterrupted(Exception):
+    """SIGINT or SIGTERM stopped training; a checkpoint was written first, so --resume continues."""
+
+    def __init__(self, signum: int, step: int):
+        super().__init__(f"stopped by {signal.Signals(signum).name} at step {step} after writing a checkpoint")
+        self.signum, self.step = signum, step
+
+
+class RunDirectoryError(ValueError):
+    """The run directory cannot be used: another run's results, or another process writing it."""
 
 
 @dataclasses.dataclass
@@ -78,19 +97,50 @@ class RunConfig:
 
     def __post_init__(self) -> None:
         if isinstance(self.sac, dict):
-            self.sac = SACConfig(**{k: tuple(v) if k == "hidden_sizes" else v for k, v in self.sac.items()})
+            self.sac = SACConfig(**self.sac)
         if self.method not in METHOD_STRATEGIES:
             raise ValueError(f"unknown method {self.method!r}; expected one of {METHODS}")
-        for name in ("steps", "eval_every", "eval_episodes", "demo_subset"):
+        for name, minimum in (("steps", 1), ("eval_every", 1), ("eval_episodes", 1), ("demo_subset", 1), ("seed", 0)):
             value = getattr(self, name)
-            if not (isinstance(value, int) and value >= 1):
-                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+            if isinstance(value, bool) or not (isinstance(value, int) and value >= minimum):
+                raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
         if self.demos not in (500, 7500):
             raise ValueError(f"demos must be 500 or 7500, got {self.demos!r}")
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON values (tuples become lists), as written to config.json."""
         return json.loads(json.dumps(dataclasses.asdict(self)))
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any], source: str = "config") -> "RunConfig":
+        """A RunConfig from plain values (e.g. a JSON file); ValueError naming unknown or bad entries."""
+        if not isinstance(values, dict):
+            raise ValueError(f"{source} must be a JSON object of RunConfig fields, got {type(values).__name__}")
+        _check_keys(values, cls, source)
+        sac = values.get("sac", {})
+        if not isinstance(sac, dict):
+            raise ValueError(f"{source}: 'sac' must be an object of SACConfig fields, got {sac!r}")
+        _check_keys(sac, SACConfig, f"{source}: 'sac'")
+        strategy = values.get("strategy", {})
+        name = METHOD_STRATEGIES.get(values.get("method", cls.method))
+        if not isinstance(strategy, dict):
+            raise ValueError(f"{source}: 'strategy' must be an object of start-strategy parameters")
+        accepted = [p for p in STRATEGY_PARAMS.get(name, ()) if p != "env"]  # the runner supplies env
+        unknown = sorted(set(strategy) - set(accepted))
+        if unknown:
+            raise ValueError(f"{source}: unknown parameters {unknown} for start strategy {name!r}; "
+                             f"it accepts {accepted or 'none'}")
+        try:
+            return cls(**values)
+        except TypeError as error:  # e.g. a SACConfig field of the wrong type
+            raise ValueError(f"{source}: {error}") from None
+
+
+def _check_keys(values: dict[str, Any], dataclass: type, source: str) -> None:
+    known = [field.name for field in dataclasses.fields(dataclass)]
+    unknown = sorted(set(values) - set(known))
+    if unknown:
+        raise ValueError(f"{source}: unknown fields {unknown}; expected some of {known}")
 
 
 def candidate_states(config: RunConfig) -> np.ndarray:
@@ -133,10 +183,36 @@ class Run:
         self.recent: list[tuple[float, bool]] = []  # (return, success) of training episodes since the last eval
         self.last_update: dict[str, float] = {}
         self.elapsed = 0.0  # wall time of earlier sessions of this run
+        self.stop_signal: int | None = None  # set by SIGINT/SIGTERM: stop at the next episode boundary
         self.obs, _ = self.env.reset(seed=seed)
 
     # --- the loop -------------------------------------------------------------------------------
     def train(self, progress: bool = True) -> None:
+        """Advance to config.steps, then write final.pt; RunInterrupted after a checkpoint on a signal."""
+        with self._stop_on_signals():
+            self._train(progress)
+
+    @contextmanager
+    def _stop_on_signals(self):
+        """SIGINT/SIGTERM ask the loop to checkpoint and stop at the next episode boundary (at most one
+        episode, a few seconds); a second signal stops at once, losing only the unsaved episode."""
+        if threading.current_thread() is not threading.main_thread():
+            yield
+            return
+
+        def request_stop(signum, frame):
+            if self.stop_signal is not None:
+                raise KeyboardInterrupt
+            self.stop_signal = signum
+
+        previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            yield
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+
+    def _train(self, progress: bool) -> None:
         config, sac = self.config, self.config.sac
         start_time = time.perf_counter() - self.elapsed
         bar = tqdm(total=config.steps, initial=self.step, disable=not progress, unit="step",
@@ -166,10 +242,13 @@ class Run:
                 self.recent.append((episode_return, bool(info["is_success"])))
                 episode_return = 0.0
                 self.obs, _ = self.env.reset()
-                if checkpoint_due:
+                if checkpoint_due or self.stop_signal is not None:
                     self.elapsed = time.perf_counter() - start_time
                     self.save(self.dir / "checkpoint.pt")
                     checkpoint_due = False
+                    if self.stop_signal is not None:
+                        bar.close()
+                        raise RunInterrupted(self.stop_signal, self.step)
             bar.update(1)
         bar.close()
         self.elapsed = time.perf_counter() - start_time
@@ -253,14 +332,57 @@ class Run:
         self.write_results()  # drop rows written after the checkpoint, so the files agree with it
 
 
-def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False, progress: bool = True) -> Run:
-    """Train `config` into `out_dir`; with `resume`, continue from its checkpoint if there is one."""
+def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False, overwrite: bool = False,
+          progress: bool = True) -> Run:
+    """Train `config` into `out_dir` and return the finished Run.
+
+    A directory holding another run's results is refused (RunDirectoryError) unless `resume` (continue
+    from its checkpoint; the configuration must match) or `overwrite` (remove that run's files first).
+    While training, the directory is locked against a second process.
+    """
     out_dir = Path(out_dir)
+    run = Run(config, out_dir)  # builds everything (and checks strategy parameters) before touching disk
     out_dir.mkdir(parents=True, exist_ok=True)
-    run = Run(config, out_dir)
-    checkpoint = out_dir / "checkpoint.pt"
-    if resume and checkpoint.exists():
-        run.load(checkpoint)
-    atomic_write_text(out_dir / "config.json", json.dumps(config.to_dict(), indent=2) + "\n")
-    run.train(progress=progress)
+    with _locked(out_dir):
+        config_file = out_dir / "config.json"
+        if config_file.exists() and overwrite:
+            for name in RUN_FILES:
+                (out_dir / name).unlink(missing_ok=True)
+            shutil.rmtree(out_dir / "policies", ignore_errors=True)
+        elif config_file.exists():
+            if not resume:
+                raise RunDirectoryError(f"{out_dir} already holds a run; resume it or overwrite it")
+            try:
+                existing = json.loads(config_file.read_text())
+            except ValueError:
+                raise RunDirectoryError(f"{config_file} is not valid JSON; not resuming into it") from None
+            if existing != config.to_dict():
+                raise RunDirectoryError(f"{out_dir} holds a run with another configuration; resume it "
+                                        "with the same options, or choose another directory")
+        checkpoint = out_dir / "checkpoint.pt"
+        if resume and checkpoint.exists():
+            run.load(checkpoint)
+        atomic_write_text(config_file, json.dumps(config.to_dict(), indent=2) + "\n")
+        run.train(progress=progress)
     return run
+
+
+@contextmanager
+def _locked(out_dir: Path):
+    """Hold an exclusive lock on out_dir/.lock: two processes never write one run directory."""
+    import fcntl
+
+    with open(out_dir / ".lock", "a+") as lock:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            lock.seek(0)
+            raise RunDirectoryError(f"{out_dir} is being written by another process "
+                                    f"(pid {lock.read().strip() or '?'}); not starting a second writer") from None
+        lock.truncate(0)
+        lock.write(str(os.getpid()))
+        lock.flush()
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
