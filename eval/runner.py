@@ -94,6 +94,9 @@ class RunConfig:
     """Extra keyword parameters of the start strategy (e.g. {"sigma": 0.3} for auxss)."""
     sac: SACConfig = dataclasses.field(default_factory=SACConfig)
     """SAC hyperparameters."""
+    env: dict[str, Any] = dataclasses.field(default_factory=dict)
+    """Keyword arguments of the env, for training and evaluation alike (e.g. {"lava_reward": 0.0} or
+    Layout fields such as {"bridge_width": 0.4}); the candidate states still come from the shipped demos."""
 
     def __post_init__(self) -> None:
         if isinstance(self.sac, dict):
@@ -106,6 +109,12 @@ class RunConfig:
                 raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
         if self.demos not in (500, 7500):
             raise ValueError(f"demos must be 500 or 7500, got {self.demos!r}")
+        if not isinstance(self.env, dict):
+            raise ValueError(f"env must be a dict of LavaBridgeEnv keyword arguments, got {self.env!r}")
+        try:
+            lava_bridge_mj.LavaBridgeEnv(**self.env).close()  # refuse bad env arguments before any work
+        except TypeError as error:
+            raise ValueError(f"env: {error}") from None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON values (tuples become lists), as written to config.json."""
@@ -155,11 +164,11 @@ def make_strategy(config: RunConfig, states: np.ndarray):
     name = METHOD_STRATEGIES[config.method]
     params = dict(config.strategy)
     if name == "omega_ss" and "omega" not in params:
-        probe = lava_bridge_mj.LavaBridgeEnv()
+        probe = lava_bridge_mj.LavaBridgeEnv(**config.env)
         params.setdefault("seed", config.seed)
         params["env"] = probe
     if name == "goaldist_ss":
-        params.setdefault("goal", lava_bridge_mj.Layout().goal)
+        params.setdefault("goal", lava_bridge_mj.LavaBridgeEnv(**config.env).layout.goal)
     return make_start_strategy(name, None if name == "p0" else states, **params)
 
 
@@ -171,8 +180,8 @@ class Run:
         seed = config.seed
         self.states = candidate_states(config)
         self.strategy = make_strategy(config, self.states)
-        self.env = StartStateWrapper(gymnasium.make(lava_bridge_mj.ENV_ID), self.strategy, seed=seed)
-        self.eval_envs = [lava_bridge_mj.LavaBridgeEnv() for _ in range(config.eval_episodes)]
+        self.env = StartStateWrapper(gymnasium.make(lava_bridge_mj.ENV_ID, **config.env), self.strategy, seed=seed)
+        self.eval_envs = [lava_bridge_mj.LavaBridgeEnv(**config.env) for _ in range(config.eval_episodes)]
         self.agent = SAC(4, 2, config.sac, seed=seed)
         self.buffer = ReplayBuffer(config.sac.buffer_size, 4, 2)
         self.rng = np.random.default_rng(seed)  # warm-up actions and minibatch indices
