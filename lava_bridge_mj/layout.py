@@ -172,14 +172,19 @@ class Layout:
 
     @property
     def walls(self) -> dict[str, Box2D]:
-        """The four outer walls, by MJCF geom name."""
+        """The four outer walls, by MJCF geom name.
+
+        Each spans the corners (the boxes overlap there): a wall ending exactly at a corner would put
+        a ball centred in that corner on the edge of its box, where MuJoCo's contact normal is
+        ambiguous and a push along the wall escapes through it.
+        """
         hx, hy = self.half_extent
         t = self.wall_thickness / 2
         return {
             "wall_north": Box2D(0.0, hy + t, hx + 2 * t, t),
             "wall_south": Box2D(0.0, -hy - t, hx + 2 * t, t),
-            "wall_east": Box2D(hx + t, 0.0, t, hy),
-            "wall_west": Box2D(-hx - t, 0.0, t, hy),
+            "wall_east": Box2D(hx + t, 0.0, t, hy + 2 * t),
+            "wall_west": Box2D(-hx - t, 0.0, t, hy + 2 * t),
         }
 
     @property
