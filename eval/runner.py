@@ -160,15 +160,16 @@ def candidate_states(config: RunConfig) -> np.ndarray:
     return states[np.sort(rng.choice(len(states), size=size, replace=False))]
 
 
-def make_strategy(config: RunConfig, states: np.ndarray):
+def make_strategy(config: RunConfig, states: np.ndarray, probe: lava_bridge_mj.LavaBridgeEnv):
+    """The method's start strategy; `probe`, an env of the run's task, gives Omega-SS its safety
+    rollouts and GoalDist-SS its goal (it is left at an arbitrary state)."""
     name = METHOD_STRATEGIES[config.method]
     params = dict(config.strategy)
     if name == "omega_ss" and "omega" not in params:
-        probe = lava_bridge_mj.LavaBridgeEnv(**config.env)
         params.setdefault("seed", config.seed)
         params["env"] = probe
     if name == "goaldist_ss":
-        params.setdefault("goal", lava_bridge_mj.LavaBridgeEnv(**config.env).layout.goal)
+        params.setdefault("goal", probe.layout.goal)
     return make_start_strategy(name, None if name == "p0" else states, **params)
 
 
@@ -179,9 +180,10 @@ class Run:
         self.config, self.dir = config, Path(out_dir)
         seed = config.seed
         self.states = candidate_states(config)
-        self.strategy = make_strategy(config, self.states)
-        self.env = StartStateWrapper(gymnasium.make(lava_bridge_mj.ENV_ID, **config.env), self.strategy, seed=seed)
+        # evaluation resets every env with a fixed seed, so one of them can serve as the strategy's probe
         self.eval_envs = [lava_bridge_mj.LavaBridgeEnv(**config.env) for _ in range(config.eval_episodes)]
+        self.strategy = make_strategy(config, self.states, probe=self.eval_envs[0])
+        self.env = StartStateWrapper(gymnasium.make(lava_bridge_mj.ENV_ID, **config.env), self.strategy, seed=seed)
         self.agent = SAC(4, 2, config.sac, seed=seed)
         self.buffer = ReplayBuffer(config.sac.buffer_size, 4, 2)
         self.rng = np.random.default_rng(seed)  # warm-up actions and minibatch indices
