@@ -1,5 +1,12 @@
-"""Network pieces shared by SAC, IQL, BC and JSRL: an MLP builder, a twin critic, a squashed
-Gaussian actor, and Polyak averaging of target networks.
+"""Network pieces shared by SAC and the baselines: a stacked MLP, a twin critic, a squashed Gaussian
+actor, and Polyak averaging of target networks.
+
+Every network holds `members` independent copies of itself, stacked along a leading axis and run with
+batched matrix multiplies: input (members, batch, features) -> output (members, batch, ...). One
+member is one training seed, so K seeds train in one process with one kernel call per layer instead of
+K (`SAC` trains them together). Members never mix: member i's output and gradients depend only on
+member i's weights and inputs, bit for bit (tests/test_sac.py checks that a member's numbers do not
+change with the number of members beside it).
 
 Everything is generic in `obs_dim`, `act_dim` and `hidden_sizes`. Actions live in [-1, 1]^act_dim
 (LavaBridge-v0's action space); wrap other envs with `gymnasium.wrappers.RescaleAction` first.
@@ -20,28 +27,64 @@ LOG_STD_MIN = -5.0
 LOG_STD_MAX = 2.0
 
 
-def MLP(in_dim: int, out_dim: int, hidden_sizes: Sequence[int] = (256, 256),
-        activation: type[nn.Module] = nn.ReLU) -> nn.Sequential:
-    """Linear -> activation, once per hidden size, then a linear output layer (no output activation)."""
-    layers: list[nn.Module] = []
-    for size in hidden_sizes:
-        layers += [nn.Linear(in_dim, size), activation()]
-        in_dim = size
-    layers.append(nn.Linear(in_dim, out_dim))
-    return nn.Sequential(*layers)
+class StackedLinear(nn.Module):
+    """`members` independent linear layers y_i = x_i W_i + b_i, applied in one `torch.baddbmm`.
+
+    weight: (members, in_features, out_features); bias: (members, 1, out_features).
+    """
+
+    def __init__(self, members: int, in_features: int, out_features: int):
+        super().__init__()
+        self.weight = nn.Parameter(torch.empty(members, in_features, out_features))
+        self.bias = nn.Parameter(torch.empty(members, 1, out_features))
+
+    @torch.no_grad()
+    def init_member(self, i: int, generator: torch.Generator) -> None:
+        """nn.Linear's default initialisation for member i: weights and bias ~ U(-1/sqrt(in), 1/sqrt(in))."""
+        bound = 1.0 / math.sqrt(self.weight.shape[1])
+        self.weight[i].uniform_(-bound, bound, generator=generator)
+        self.bias[i].uniform_(-bound, bound, generator=generator)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        if self.weight.shape[2] == 1:
+            # One output (a Q-value): baddbmm becomes a matrix-vector product whose CPU kernel, and so
+            # its rounding, changes with the number of members; a product and a sum over the last
+            # axis round the same way for any number (measured: bit-identical for 1 and 8 members).
+            return (x * self.weight.transpose(1, 2)).sum(-1, keepdim=True) + self.bias
+        return torch.baddbmm(self.bias, x, self.weight)
+
+
+class MLP(nn.Sequential):
+    """StackedLinear -> ReLU, once per hidden size, then a StackedLinear output layer."""
+
+    def __init__(self, members: int, in_dim: int, out_dim: int, hidden_sizes: Sequence[int] = (256, 256)):
+        layers: list[nn.Module] = []
+        for size in hidden_sizes:
+            layers += [StackedLinear(members, in_dim, size), nn.ReLU()]
+            in_dim = size
+        layers.append(StackedLinear(members, in_dim, out_dim))
+        super().__init__(*layers)
+
+
+def init_member(module: nn.Module, i: int, generator: torch.Generator) -> None:
+    """Initialise member i of every StackedLinear in `module`, in order, from `generator`: member i's
+    weights depend only on its generator, never on how many members share the module."""
+    for layer in module.modules():
+        if isinstance(layer, StackedLinear):
+            layer.init_member(i, generator)
 
 
 class TwinQ(nn.Module):
     """Two independent Q(s, a) networks in one module, so one optimiser and one target copy serve both.
 
-    `both(obs, action)` gives (q1, q2), each of shape (batch,); calling the module gives their minimum,
-    the pessimistic estimate SAC's actor and IQL's value target use (clipped double Q).
+    `both(obs, action)` gives (q1, q2), each of shape (members, batch); calling the module gives their
+    minimum, the pessimistic estimate SAC's actor and IQL's value target use (clipped double Q).
     """
 
-    def __init__(self, obs_dim: int, act_dim: int, hidden_sizes: Sequence[int] = (256, 256)):
+    def __init__(self, members: int, obs_dim: int, act_dim: int, hidden_sizes: Sequence[int] = (256, 256)):
         super().__init__()
-        self.q1 = MLP(obs_dim + act_dim, 1, hidden_sizes)
-        self.q2 = MLP(obs_dim + act_dim, 1, hidden_sizes)
+        self.q1 = MLP(members, obs_dim + act_dim, 1, hidden_sizes)
+        self.q2 = MLP(members, obs_dim + act_dim, 1, hidden_sizes)
 
     def both(self, obs: torch.Tensor, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         x = torch.cat([obs, action], dim=-1)
@@ -59,27 +102,32 @@ class TanhGaussianActor(nn.Module):
     where tanh saturates. The deterministic (evaluation) action is tanh(mean).
     """
 
-    def __init__(self, obs_dim: int, act_dim: int, hidden_sizes: Sequence[int] = (256, 256)):
+    def __init__(self, members: int, obs_dim: int, act_dim: int, hidden_sizes: Sequence[int] = (256, 256)):
         super().__init__()
-        self.net = MLP(obs_dim, 2 * act_dim, hidden_sizes)
+        self.net = MLP(members, obs_dim, 2 * act_dim, hidden_sizes)
 
     def distribution(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """The pre-tanh Gaussian: (mean, log_std), each (batch, act_dim)."""
+        """The pre-tanh Gaussian: (mean, log_std), each (members, batch, act_dim)."""
         mean, log_std = self.net(obs).chunk(2, dim=-1)
         return mean, log_std.clamp(LOG_STD_MIN, LOG_STD_MAX)
 
     def forward(self, obs: torch.Tensor, deterministic: bool = False,
-                generator: torch.Generator | None = None) -> tuple[torch.Tensor, torch.Tensor]:
-        """Sample (reparameterised, so gradients flow) an action and its log-prob, shape (batch,).
+                generators: Sequence[torch.Generator] | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        """Sample (reparameterised, so gradients flow) an action and its log-prob, shape (members, batch).
 
-        `generator` draws the noise; pass one for runs that do not depend on torch's global seed.
+        `generators`, one per member, draw each member's noise, so a member's samples do not depend
+        on the others; None draws from torch's global generator.
         In deterministic mode the action is tanh(mean) and the log-prob is that of the mean.
         """
         mean, log_std = self.distribution(obs)
         if deterministic:
             u = mean
         else:
-            noise = torch.randn(mean.shape, generator=generator, dtype=mean.dtype, device=mean.device)
+            shape, dtype = mean.shape[1:], mean.dtype
+            if generators is None:
+                noise = torch.randn(mean.shape, dtype=dtype)
+            else:
+                noise = torch.stack([torch.randn(shape, generator=g, dtype=dtype) for g in generators])
             u = mean + log_std.exp() * noise
         return torch.tanh(u), _squashed_log_prob(u, mean, log_std)
 

@@ -1,17 +1,24 @@
-"""Train one method for one seed and write a run directory.
+"""Train one method for one seed, or for K seeds at once, writing one run directory per seed.
 
 A run directory holds:
     config.json         the full configuration (a resumed run must match it)
     metrics.csv         one row per evaluation: steps, success from p0 and ood, returns, SAC stats
     start_weights.npz   the start strategy's candidate states and its weights at every evaluation
     checkpoint.pt       the latest checkpoint: everything needed to continue exactly
+    checkpoint.prev.pt  the one before it (see below)
     policies/step_N.pt  the actor's weights at every evaluation (for videos and later analysis)
     final.pt            the checkpoint at the end of training
 Every file is replaced atomically, so an interrupted run never leaves a half-written one.
 
-Checkpoints are taken at the first episode boundary after each evaluation: there the env needs
-no physics state restored, only its random generators, so a resumed run replays the uninterrupted
-one exactly.
+K seeds of one configuration train together in one process (`train(config, dirs, seeds=...)`): one
+`SAC` with stacked networks updates all of them in one batched step, each seed with its own env,
+start strategy, replay buffer, RNGs and directory. A seed's files are the same as if it had trained
+alone (tests/test_runner.py checks it), and its checkpoint holds only its own state, so it can be
+resumed alone or in another batch. The seeds of a batch checkpoint together after each evaluation,
+mid-episode (the physics state (qpos, qvel) and the episode's step count are saved, and restoring
+them replays the uninterrupted run exactly). A kill between two seeds' checkpoint writes leaves
+some seeds one checkpoint ahead; each keeps the previous one too, and a resume picks the newest step
+every seed of the batch has.
 """
 
 from __future__ import annotations
@@ -25,7 +32,8 @@ import shutil
 import signal
 import threading
 import time
-from contextlib import contextmanager
+from collections.abc import Sequence
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -36,7 +44,7 @@ from tqdm.auto import tqdm
 
 import lava_bridge_mj
 from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
-from lava_bridge_mj.agents.sac import SAC, SACConfig
+from lava_bridge_mj.agents.sac import SAC, SACConfig, stack_batches
 from lava_bridge_mj.agents.start_state_wrapper import StartStateWrapper
 from lava_bridge_mj.agents.start_strategies import STRATEGY_PARAMS, make_start_strategy
 from lava_bridge_mj.eval.atomic import atomic_write, atomic_write_text
@@ -53,8 +61,9 @@ METHOD_STRATEGIES = {
 METHODS = tuple(METHOD_STRATEGIES)
 METRIC_FIELDS = ("step", "episodes", "success_p0", "success_ood", "return_p0", "return_ood",
                  "train_return", "train_success", "q_mean", "alpha", "critic_loss", "wall_time")
-CHECKPOINT_VERSION = 1
-RUN_FILES = ("config.json", "metrics.csv", "start_weights.npz", "checkpoint.pt", "final.pt", "rollouts.mp4")
+CHECKPOINT_VERSION = 2
+CHECKPOINTS = ("checkpoint.pt", "checkpoint.prev.pt")
+RUN_FILES = ("config.json", "metrics.csv", "start_weights.npz", *CHECKPOINTS, "final.pt", "rollouts.mp4")
 """What a run directory holds besides policies/: what --overwrite removes."""
 
 
@@ -173,29 +182,150 @@ def make_strategy(config: RunConfig, states: np.ndarray, probe: lava_bridge_mj.L
     return make_start_strategy(name, None if name == "p0" else states, **params)
 
 
-class Run:
-    """The state of one training run, with the loop that advances it and its on-disk form."""
+class SeedRun:
+    """One seed's part of a training batch: its env, start strategy, replay buffer, RNGs, metrics
+    and run directory. `Run` steps all of its seeds in lockstep."""
 
-    def __init__(self, config: RunConfig, out_dir: str | Path):
+    def __init__(self, config: RunConfig, out_dir: str | Path, probe: lava_bridge_mj.LavaBridgeEnv):
         self.config, self.dir = config, Path(out_dir)
         seed = config.seed
         self.states = candidate_states(config)
-        # evaluation resets every env with a fixed seed, so one of them can serve as the strategy's probe
-        self.eval_envs = [lava_bridge_mj.LavaBridgeEnv(**config.env) for _ in range(config.eval_episodes)]
-        self.strategy = make_strategy(config, self.states, probe=self.eval_envs[0])
+        self.strategy = make_strategy(config, self.states, probe)
         self.env = StartStateWrapper(gymnasium.make(lava_bridge_mj.ENV_ID, **config.env), self.strategy, seed=seed)
-        self.agent = SAC(4, 2, config.sac, seed=seed)
         self.buffer = ReplayBuffer(config.sac.buffer_size, 4, 2)
         self.rng = np.random.default_rng(seed)  # warm-up actions and minibatch indices
-        self.step = 0
         self.episodes = 0
+        self.episode_return = 0.0
         self.rows: list[dict[str, float]] = []
         self.weight_history: list[np.ndarray] = []
         self.recent: list[tuple[float, bool]] = []  # (return, success) of training episodes since the last eval
         self.last_update: dict[str, float] = {}
-        self.elapsed = 0.0  # wall time of earlier sessions of this run
-        self.stop_signal: int | None = None  # set by SIGINT/SIGTERM: stop at the next episode boundary
         self.obs, _ = self.env.reset(seed=seed)
+
+    def step(self, action: np.ndarray) -> None:
+        """One env step with `action`: store the transition, reset when the episode ends."""
+        next_obs, reward, terminated, truncated, info = self.env.step(action)
+        self.buffer.add(self.obs, action, reward, next_obs, terminated)
+        self.episode_return += reward
+        self.obs = next_obs
+        if terminated or truncated:
+            self.episodes += 1
+            self.recent.append((self.episode_return, bool(info["is_success"])))
+            self.episode_return = 0.0
+            self.obs, _ = self.env.reset()
+
+    def record(self, step: int, p0: dict[str, float], ood: dict[str, float], actor: dict, elapsed: float) -> dict:
+        """Append an evaluation row and write metrics, weights and the policy snapshot."""
+        returns = [r for r, _ in self.recent]
+        row = {
+            "step": step, "episodes": self.episodes,
+            "success_p0": p0["success"], "success_ood": ood["success"],
+            "return_p0": p0["return"], "return_ood": ood["return"],
+            "train_return": float(np.mean(returns)) if returns else float("nan"),
+            "train_success": float(np.mean([s for _, s in self.recent])) if returns else float("nan"),
+            "q_mean": self.last_update.get("q_mean", float("nan")),
+            "alpha": self.last_update.get("alpha", self.config.sac.initial_alpha),
+            "critic_loss": self.last_update.get("critic_loss", float("nan")),
+            "wall_time": round(elapsed, 2),
+        }
+        self.recent = []
+        self.rows.append(row)
+        self.weight_history.append(self.strategy.probabilities.copy())
+        self.write_results()
+        (self.dir / "policies").mkdir(exist_ok=True)
+        atomic_write(self.dir / "policies" / f"step_{step}.pt", lambda f: torch.save(actor, f))
+        return row
+
+    def write_results(self) -> None:
+        text = io.StringIO()
+        writer = csv.DictWriter(text, fieldnames=METRIC_FIELDS, lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(self.rows)
+        atomic_write_text(self.dir / "metrics.csv", text.getvalue())
+        steps = np.array([row["step"] for row in self.rows], dtype=np.int64)
+        weights = np.array(self.weight_history).reshape(len(steps), -1)
+        atomic_write(self.dir / "start_weights.npz",
+                     lambda f: np.savez(f, steps=steps, states=self.states, probabilities=weights))
+
+    def state(self, step: int, elapsed: float, agent: dict) -> dict:
+        """This seed's checkpoint at `step`, mid-episode: the physics state and the episode's step
+        count make the env continue exactly where it was."""
+        base = self.env.unwrapped
+        return {
+            "version": CHECKPOINT_VERSION,
+            "config": self.config.to_dict(),
+            "step": step, "episodes": self.episodes, "elapsed": elapsed,
+            "rows": self.rows, "weight_history": self.weight_history,
+            "recent": self.recent, "last_update": self.last_update,
+            "agent": agent,
+            "buffer": self.buffer.state_dict(),
+            "wrapper": self.env.state_dict(),
+            "rng": self.rng.bit_generator.state,
+            "env_rng": base.np_random.bit_generator.state,
+            "physics": base.get_state(),
+            "elapsed_steps": self.env.get_wrapper_attr("_elapsed_steps"),  # gymnasium's TimeLimit count
+            "obs": self.obs, "episode_return": self.episode_return,
+        }
+
+    def save(self, state: dict, name: str = "checkpoint.pt") -> None:
+        """Write `state` atomically; the checkpoint it replaces becomes checkpoint.prev.pt first."""
+        path = self.dir / name
+        if name == CHECKPOINTS[0] and path.exists():
+            link = self.dir / f".{CHECKPOINTS[1]}.link{os.getpid()}"
+            link.unlink(missing_ok=True)
+            os.link(path, link)  # a second name for the same file, then an atomic rename over prev
+            os.replace(link, self.dir / CHECKPOINTS[1])
+        atomic_write(path, lambda f: torch.save(state, f))
+
+    def load(self, state: dict) -> None:
+        self.episodes = state["episodes"]
+        self.rows, self.weight_history = state["rows"], state["weight_history"]
+        self.recent, self.last_update = state["recent"], state["last_update"]
+        self.buffer.load_state_dict(state["buffer"])
+        base = self.env.unwrapped
+        qpos, qvel = state["physics"][:2], state["physics"][2:]
+        self.env.reset(options={"qpos": qpos, "qvel": qvel})  # through the wrappers, so each is mid-episode
+        self.env.load_state_dict(state["wrapper"])
+        self.env.set_wrapper_attr("_elapsed_steps", state["elapsed_steps"])
+        self.rng.bit_generator.state = state["rng"]
+        base.np_random.bit_generator.state = state["env_rng"]
+        self.obs, self.episode_return = state["obs"], state["episode_return"]
+        self.write_results()  # drop rows written after the checkpoint, so the files agree with it
+
+
+class Run:
+    """K seeds of one configuration training in lockstep, with the loop that advances them.
+
+    `seed_runs[i]` holds seed i's env, strategy, buffer and files; `agent` is one SAC over all seeds.
+    For a single seed, `rows`, `strategy` and `dir` are that seed's.
+    """
+
+    def __init__(self, configs: list[RunConfig], out_dirs: list[str | Path]):
+        if not configs or len(configs) != len(out_dirs):
+            raise ValueError(f"expected one run directory per configuration, got {len(configs)} and {len(out_dirs)}")
+        shared = [{**c.to_dict(), "seed": None} for c in configs]
+        if any(values != shared[0] for values in shared):
+            raise ValueError("the seeds of one batch must share every setting but the seed")
+        seeds = [c.seed for c in configs]
+        if len(set(seeds)) != len(seeds):
+            raise ValueError(f"seeds must be distinct, got {seeds}")
+        self.config = configs[0]
+        # evaluation resets every env with a fixed seed, so one of them can serve as the strategies' probe
+        self.eval_envs = [lava_bridge_mj.LavaBridgeEnv(**self.config.env) for _ in range(self.config.eval_episodes)]
+        self.seed_runs = [SeedRun(c, d, probe=self.eval_envs[0]) for c, d in zip(configs, out_dirs)]
+        self.agent = SAC(4, 2, self.config.sac, seeds=seeds)
+        self.step = 0
+        self.elapsed = 0.0  # wall time of earlier sessions of this run
+        self.stop_signal: int | None = None  # set by SIGINT/SIGTERM: checkpoint and stop after this step
+
+    # single-seed conveniences
+    @property
+    def rows(self) -> list[dict[str, float]]:
+        return self.seed_runs[0].rows
+
+    @property
+    def strategy(self):
+        return self.seed_runs[0].strategy
 
     # --- the loop -------------------------------------------------------------------------------
     def train(self, progress: bool = True) -> None:
@@ -205,8 +335,8 @@ class Run:
 
     @contextmanager
     def _stop_on_signals(self):
-        """SIGINT/SIGTERM ask the loop to checkpoint and stop at the next episode boundary (at most one
-        episode, a few seconds); a second signal stops at once, losing only the unsaved episode."""
+        """SIGINT/SIGTERM ask the loop to checkpoint and stop after the current step; a second signal
+        stops at once, losing only the work since the last checkpoint."""
         if threading.current_thread() is not threading.main_thread():
             yield
             return
@@ -224,158 +354,155 @@ class Run:
                 signal.signal(sig, handler)
 
     def _train(self, progress: bool) -> None:
-        config, sac = self.config, self.config.sac
+        config, sac, seed_runs = self.config, self.config.sac, self.seed_runs
         start_time = time.perf_counter() - self.elapsed
+        seeds = ", ".join(str(s) for s in self.agent.seeds)
         bar = tqdm(total=config.steps, initial=self.step, disable=not progress, unit="step",
-                   desc=f"{config.method} seed {config.seed}", dynamic_ncols=True)
-        episode_return = 0.0
-        checkpoint_due = False
+                   desc=f"{config.method} seed{'s' if len(seed_runs) > 1 else ''} {seeds}", dynamic_ncols=True)
         while self.step < config.steps:
             if self.step < sac.learning_starts:
-                action = self.rng.uniform(-1.0, 1.0, 2).astype(np.float32)
+                actions = [s.rng.uniform(-1.0, 1.0, 2).astype(np.float32) for s in seed_runs]
             else:
-                action = self.agent.act(self.obs)
-            next_obs, reward, terminated, truncated, info = self.env.step(action)
-            self.buffer.add(self.obs, action, reward, next_obs, terminated)
-            episode_return += reward
-            self.obs = next_obs
+                actions = self.agent.act(np.stack([s.obs for s in seed_runs]))
+            for seed_run, action in zip(seed_runs, actions):
+                seed_run.step(action)
             self.step += 1
             if self.step >= sac.learning_starts:
-                self.last_update = self.agent.update(self.buffer.sample(sac.batch_size, self.rng))
-            if self.step % config.eval_every == 0 or self.step == config.steps:
+                stats = self.agent.update(stack_batches([s.buffer.sample(sac.batch_size, s.rng) for s in seed_runs]))
+                for i, seed_run in enumerate(seed_runs):
+                    seed_run.last_update = {name: float(values[i]) for name, values in stats.items()}
+            evaluation_due = self.step % config.eval_every == 0 or self.step == config.steps
+            if evaluation_due:
                 self.elapsed = time.perf_counter() - start_time
-                row = self.evaluate()
-                bar.set_postfix(p0=f"{row['success_p0']:.2f}", ood=f"{row['success_ood']:.2f}",
-                                ret=f"{row['train_return']:.2f}")
-                checkpoint_due = True
-            if terminated or truncated:
-                self.episodes += 1
-                self.recent.append((episode_return, bool(info["is_success"])))
-                episode_return = 0.0
-                self.obs, _ = self.env.reset()
-                if checkpoint_due or self.stop_signal is not None:
-                    self.elapsed = time.perf_counter() - start_time
-                    self.save(self.dir / "checkpoint.pt")
-                    checkpoint_due = False
-                    if self.stop_signal is not None:
-                        bar.close()
-                        raise RunInterrupted(self.stop_signal, self.step)
+                rows = self.evaluate()
+                returns = [r["train_return"] for r in rows if np.isfinite(r["train_return"])]
+                bar.set_postfix(p0=f"{np.mean([r['success_p0'] for r in rows]):.2f}",
+                                ood=f"{np.mean([r['success_ood'] for r in rows]):.2f}",
+                                ret=f"{np.mean(returns):.2f}" if returns else "-")
+            if evaluation_due or self.stop_signal is not None:
+                self.elapsed = time.perf_counter() - start_time
+                self.save()
+                if self.stop_signal is not None:
+                    bar.close()
+                    raise RunInterrupted(self.stop_signal, self.step)
             bar.update(1)
         bar.close()
         self.elapsed = time.perf_counter() - start_time
-        self.save(self.dir / "final.pt")
+        self.save("final.pt")
 
-    def evaluate(self) -> dict[str, float]:
-        policy = lambda obs: self.agent.act(obs, deterministic=True)  # noqa: E731
-        p0 = evaluate(policy, self.eval_envs, "p0")
-        ood = evaluate(policy, self.eval_envs, "ood")
-        returns = [r for r, _ in self.recent]
-        row = {
-            "step": self.step, "episodes": self.episodes,
-            "success_p0": p0["success"], "success_ood": ood["success"],
-            "return_p0": p0["return"], "return_ood": ood["return"],
-            "train_return": float(np.mean(returns)) if returns else float("nan"),
-            "train_success": float(np.mean([s for _, s in self.recent])) if returns else float("nan"),
-            "q_mean": self.last_update.get("q_mean", float("nan")),
-            "alpha": self.last_update.get("alpha", self.agent.alpha),
-            "critic_loss": self.last_update.get("critic_loss", float("nan")),
-            "wall_time": round(self.elapsed, 2),
-        }
-        self.recent = []
-        self.rows.append(row)
-        self.weight_history.append(self.strategy.probabilities.copy())
-        self.write_results()
-        (self.dir / "policies").mkdir(exist_ok=True)
-        actor = self.agent.actor.state_dict()
-        atomic_write(self.dir / "policies" / f"step_{self.step}.pt", lambda f: torch.save(actor, f))
-        return row
+    def evaluate(self) -> list[dict[str, float]]:
+        """Each seed's deterministic policy on the fixed p0 and ood episodes; rows written to each run."""
+        rows = []
+        for i, seed_run in enumerate(self.seed_runs):
+            policy = self.policy(i)
+            p0 = evaluate(policy, self.eval_envs, "p0")
+            ood = evaluate(policy, self.eval_envs, "ood")
+            actor = {name: tensor[i:i + 1].clone() for name, tensor in self.agent.actor.state_dict().items()}
+            rows.append(seed_run.record(self.step, p0, ood, actor, self.elapsed))
+        return rows
 
-    # --- files ----------------------------------------------------------------------------------
-    def write_results(self) -> None:
-        text = io.StringIO()
-        writer = csv.DictWriter(text, fieldnames=METRIC_FIELDS, lineterminator="\n")
-        writer.writeheader()
-        writer.writerows(self.rows)
-        atomic_write_text(self.dir / "metrics.csv", text.getvalue())
-        steps = np.array([row["step"] for row in self.rows], dtype=np.int64)
-        weights = np.array(self.weight_history).reshape(len(steps), -1)
-        atomic_write(self.dir / "start_weights.npz",
-                     lambda f: np.savez(f, steps=steps, states=self.states, probabilities=weights))
+    def policy(self, i: int = 0):
+        """Seed i's deterministic policy: observations (n, 4) or (4,) -> actions (n, 2) or (2,)."""
+        def act(obs: np.ndarray) -> np.ndarray:
+            obs = np.asarray(obs, dtype=np.float32)
+            # every seed acts on the same observations; seed i's actions are kept
+            return self.agent.act(np.repeat(obs[None], self.agent.num_seeds, 0), deterministic=True)[i]
+        return act
 
-    def save(self, path: Path) -> None:
-        base = self.env.unwrapped
-        state = {
-            "version": CHECKPOINT_VERSION,
-            "config": self.config.to_dict(),
-            "step": self.step, "episodes": self.episodes, "elapsed": self.elapsed,
-            "rows": self.rows, "weight_history": self.weight_history,
-            "recent": self.recent, "last_update": self.last_update,
-            "agent": self.agent.state_dict(),
-            "buffer": self.buffer.state_dict(),
-            "wrapper": self.env.state_dict(),
-            "rng": self.rng.bit_generator.state,
-            "env_rng": base.np_random.bit_generator.state,
-            "obs": self.obs,
-        }
-        atomic_write(path, lambda f: torch.save(state, f))
+    # --- checkpoints ----------------------------------------------------------------------------
+    def save(self, name: str = "checkpoint.pt") -> None:
+        for i, seed_run in enumerate(self.seed_runs):
+            seed_run.save(seed_run.state(self.step, self.elapsed, self.agent.seed_state(i)), name)
 
-    def load(self, path: Path) -> None:
-        try:
-            state = torch.load(path, weights_only=False)
-        except Exception as error:  # a checkpoint from elsewhere can fail in many ways
-            raise ValueError(f"checkpoint {path} cannot be read ({type(error).__name__}: {error})") from None
-        if not isinstance(state, dict) or state.get("version") != CHECKPOINT_VERSION:
-            raise ValueError(f"checkpoint {path} is not a version-{CHECKPOINT_VERSION} lava-bridge-mj checkpoint")
-        if state["config"] != self.config.to_dict():
-            raise ValueError(f"checkpoint {path} was written with another configuration; "
-                             "resume with the same options or start a new run directory")
-        self.step, self.episodes, self.elapsed = state["step"], state["episodes"], state["elapsed"]
-        self.rows, self.weight_history = state["rows"], state["weight_history"]
-        self.recent, self.last_update = state["recent"], state["last_update"]
-        self.agent.load_state_dict(state["agent"])
-        self.buffer.load_state_dict(state["buffer"])
-        self.env.load_state_dict(state["wrapper"])
-        self.rng.bit_generator.state = state["rng"]
-        self.env.unwrapped.np_random.bit_generator.state = state["env_rng"]
-        # Checkpoints are taken right after a reset, where the observation is the whole physics state.
-        self.obs = state["obs"]
-        self.env.unwrapped.set_state(self.obs[:2], self.obs[2:])
-        self.write_results()  # drop rows written after the checkpoint, so the files agree with it
+    def resume(self) -> None:
+        """Continue from the newest checkpoint step that every seed has (see the module docstring);
+        from the start if some seed has none."""
+        available = [{} for _ in self.seed_runs]
+        for found, seed_run in zip(available, self.seed_runs):
+            for name in CHECKPOINTS:
+                path = seed_run.dir / name
+                if path.exists():
+                    state = _read_checkpoint(path, seed_run.config)
+                    found[state["step"]] = state
+        if not all(available):
+            return
+        common = set.intersection(*(set(found) for found in available))
+        if not common:
+            steps = {str(s.dir): sorted(found) for s, found in zip(self.seed_runs, available)}
+            raise ValueError(f"the seeds' checkpoints are at different steps {steps}; resume them in separate batches")
+        self.step = max(common)
+        states = [found[self.step] for found in available]
+        self.elapsed = max(state["elapsed"] for state in states)
+        self.agent.load_seed_states([state["agent"] for state in states])
+        for seed_run, state in zip(self.seed_runs, states):
+            seed_run.load(state)
 
 
-def train(config: RunConfig, out_dir: str | Path, *, resume: bool = False, overwrite: bool = False,
-          progress: bool = True) -> Run:
+def _read_checkpoint(path: Path, config: RunConfig) -> dict:
+    try:
+        state = torch.load(path, weights_only=False)
+    except Exception as error:  # a checkpoint from elsewhere can fail in many ways
+        raise ValueError(f"checkpoint {path} cannot be read ({type(error).__name__}: {error})") from None
+    if not isinstance(state, dict) or state.get("version") != CHECKPOINT_VERSION:
+        raise ValueError(f"checkpoint {path} is not a version-{CHECKPOINT_VERSION} lava-bridge-mj checkpoint")
+    if state["config"] != config.to_dict():
+        raise ValueError(f"checkpoint {path} was written with another configuration; "
+                         "resume with the same options or start a new run directory")
+    return state
+
+
+def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seeds: Sequence[int] | None = None,
+          resume: bool = False, overwrite: bool = False, progress: bool = True) -> Run:
     """Train `config` into `out_dir` and return the finished Run.
 
+    With `seeds`, train those seeds of `config` together in one batch, seed seeds[i] into out_dir[i]
+    (a sequence of directories, one per seed); each directory is what a single-seed run would write.
+
     A directory holding another run's results is refused (RunDirectoryError) unless `resume` (continue
-    from its checkpoint; the configuration must match) or `overwrite` (remove that run's files first).
-    While training, the directory is locked against a second process.
+    from its checkpoints; the configuration must match) or `overwrite` (remove that run's files first).
+    While training, every directory is locked against a second process.
     """
-    out_dir = Path(out_dir)
-    run = Run(config, out_dir)  # builds everything (and checks strategy parameters) before touching disk
-    out_dir.mkdir(parents=True, exist_ok=True)
-    with _locked(out_dir):
-        config_file = out_dir / "config.json"
-        if config_file.exists() and overwrite:
-            for name in RUN_FILES:
-                (out_dir / name).unlink(missing_ok=True)
-            shutil.rmtree(out_dir / "policies", ignore_errors=True)
-        elif config_file.exists():
-            if not resume:
-                raise RunDirectoryError(f"{out_dir} already holds a run; resume it or overwrite it")
-            try:
-                existing = json.loads(config_file.read_text())
-            except ValueError:
-                raise RunDirectoryError(f"{config_file} is not valid JSON; not resuming into it") from None
-            if existing != config.to_dict():
-                raise RunDirectoryError(f"{out_dir} holds a run with another configuration; resume it "
-                                        "with the same options, or choose another directory")
-        checkpoint = out_dir / "checkpoint.pt"
-        if resume and checkpoint.exists():
-            run.load(checkpoint)
-        atomic_write_text(config_file, json.dumps(config.to_dict(), indent=2) + "\n")
+    if seeds is None:
+        configs, dirs = [config], [Path(out_dir)]
+    else:
+        configs = [dataclasses.replace(config, seed=seed) for seed in seeds]
+        dirs = [Path(d) for d in ([out_dir] if isinstance(out_dir, (str, Path)) else out_dir)]
+        if len(dirs) != len(configs):
+            raise ValueError(f"expected one run directory per seed ({len(configs)}), got {len(dirs)}")
+    run = Run(configs, dirs)  # builds everything (and checks strategy parameters) before touching disk
+    for directory in dirs:
+        directory.mkdir(parents=True, exist_ok=True)
+    with ExitStack() as locks:
+        for directory in dirs:
+            locks.enter_context(_locked(directory))
+        for seed_config, directory in zip(configs, dirs):  # check every directory before changing any
+            _check_run_directory(seed_config, directory, resume, overwrite)
+        if overwrite:
+            for directory in dirs:
+                for name in RUN_FILES:
+                    (directory / name).unlink(missing_ok=True)
+                shutil.rmtree(directory / "policies", ignore_errors=True)
+        if resume:
+            run.resume()
+        for seed_config, directory in zip(configs, dirs):
+            atomic_write_text(directory / "config.json", json.dumps(seed_config.to_dict(), indent=2) + "\n")
         run.train(progress=progress)
     return run
+
+
+def _check_run_directory(config: RunConfig, directory: Path, resume: bool, overwrite: bool) -> None:
+    config_file = directory / "config.json"
+    if not config_file.exists() or overwrite:
+        return
+    if not resume:
+        raise RunDirectoryError(f"{directory} already holds a run; resume it or overwrite it")
+    try:
+        existing = json.loads(config_file.read_text())
+    except ValueError:
+        raise RunDirectoryError(f"{config_file} is not valid JSON; not resuming into it") from None
+    if existing != config.to_dict():
+        raise RunDirectoryError(f"{directory} holds a run with another configuration; resume it "
+                                "with the same options, or choose another directory")
 
 
 @contextmanager

@@ -18,7 +18,7 @@ TINY = {"steps": 1500, "eval_every": 250, "eval_episodes": 2, "demo_subset": 20,
         "sac": {"hidden_sizes": [16, 16], "batch_size": 32, "buffer_size": 500, "learning_starts": 100}}
 KILL_AFTER_CHECKPOINTS = (1, 3)
 KILL_AFTER_SECONDS = (0.5, 4.0)  # before any checkpoint (likely), and at an arbitrary moment
-"""Kill-and-resume trials: the README counts them (4 SIGKILL + 1 SIGTERM + 1 SIGINT)."""
+"""Kill-and-resume trials: the README counts them (4 SIGKILL + 1 SIGTERM + 1 SIGINT, and 1 SIGKILL of a batch)."""
 
 
 @pytest.fixture(scope="module")
@@ -176,3 +176,18 @@ def test_overwrite_replaces_the_previous_run(config_file, reference, tmp_path):
     assert len(metrics(out)) == 1
     subprocess.run(command(config_file, out, "--overwrite"), check=True, capture_output=True)
     assert metrics(out) == reference
+
+
+def test_a_killed_batch_resumes_and_each_seed_matches_its_single_seed_run(config_file, reference, tmp_path):
+    """Seeds 0 and 1 trained together, killed after two checkpoints, resumed: seed 0's metrics equal the
+    reference run of seed 0 alone (one torch thread, the CLI's default)."""
+    out = tmp_path / "batch"
+    batch = command(config_file, out, "--seeds", "0,1")
+    process = subprocess.Popen(batch, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    wait_for_checkpoints(process, out / "seed1", 2)
+    process.kill()
+    process.wait()
+    result = subprocess.run([*batch, "--resume"], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert metrics(out / "seed0") == reference
+    assert metrics(out / "seed1") != reference

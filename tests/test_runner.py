@@ -1,6 +1,7 @@
 """The training runner and the lava-bridge-bench CLI: run directories, resume, bad arguments."""
 
 import csv
+import dataclasses
 import json
 import shutil
 
@@ -67,13 +68,14 @@ def test_same_seed_same_metrics(tmp_path):
 def test_resume_from_checkpoint_equals_uninterrupted_run(tmp_path):
     config = tiny_config()
     full = train(config, tmp_path / "full", progress=False)
-    checkpoint = torch.load(tmp_path / "full/checkpoint.pt", weights_only=False)
+    checkpoint = torch.load(tmp_path / "full/checkpoint.prev.pt", weights_only=False)
     assert 0 < checkpoint["step"] < config.steps, "the test needs a checkpoint from the middle of the run"
+    assert checkpoint["wrapper"]["episode_length"] > 0, "the test needs a checkpoint from the middle of an episode"
 
     # An interrupted run: only the files as they were at that checkpoint, plus a stale row past it.
     resumed_dir = tmp_path / "resumed"
     resumed_dir.mkdir()
-    shutil.copy(tmp_path / "full/checkpoint.pt", resumed_dir / "checkpoint.pt")
+    shutil.copy(tmp_path / "full/checkpoint.prev.pt", resumed_dir / "checkpoint.pt")
     shutil.copy(tmp_path / "full/config.json", resumed_dir / "config.json")
     shutil.copy(tmp_path / "full/metrics.csv", resumed_dir / "metrics.csv")
     resumed = train(config, resumed_dir, resume=True, progress=False)
@@ -99,6 +101,10 @@ def test_resume_refuses_a_checkpoint_of_another_configuration(tmp_path):
     (["--method", "auxss", "--demos", "1000"], "invalid choice: 1000"),
     (["--method", "auxss", "--eval-every", "-3"], "expected a positive integer, got -3"),
     ([], "the following arguments are required: --method"),
+    (["--method", "auxss", "--seeds", "0-x"], "expected seeds like 0-24 or 0,3,5-7, got '0-x'"),
+    (["--method", "auxss", "--seeds", "5-2"], "expected a range of non-negative seeds low-high, got '5-2'"),
+    (["--method", "auxss", "--seeds", "0-3,2"], "seeds must be distinct; repeated: [2]"),
+    (["--method", "auxss", "--seeds", "0-3", "--seed", "1"], "not allowed with argument --seeds"),
 ])
 def test_cli_rejects_bad_arguments(argv, message, capsys, tmp_path):
     with pytest.raises(SystemExit) as exit_info:
@@ -134,3 +140,110 @@ def test_cli_runs_a_tiny_training_job(tmp_path, capsys):
     assert code == 0
     assert [int(r["step"]) for r in read_metrics(tmp_path / "metrics.csv")] == [100, 200]
     assert "uniform_ss seed 0: 200 steps" in capsys.readouterr().out
+
+
+# --- several seeds in one batch ----------------------------------------------------------------------
+
+def seed_files(directory):
+    """What a seed's results are: metrics (without wall time), start weights and policy snapshots."""
+    weights = np.load(directory / "start_weights.npz")
+    policies = {p.name: torch.load(p) for p in sorted((directory / "policies").iterdir())}
+    return without_wall_time(read_metrics(directory / "metrics.csv")), weights["probabilities"], policies
+
+
+@pytest.fixture
+def one_torch_thread():
+    # Bit-identity across batch compositions holds with one thread (see agents/networks.py).
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+@pytest.mark.parametrize("method", ["auxss", "sac"])
+def test_a_seed_trained_in_a_batch_writes_what_it_writes_alone(tmp_path, method, one_torch_thread):
+    config = tiny_config(method, steps=400)
+    train(config, tmp_path / "alone", progress=False)
+    dirs = [tmp_path / f"batch/seed{s}" for s in (1, 3, 4)]
+    run = train(config, dirs, seeds=[1, 3, 4], progress=False)
+    assert run.agent.seeds == (1, 3, 4)
+    alone, batched = seed_files(tmp_path / "alone"), seed_files(dirs[1])
+    assert alone[0] == batched[0]
+    np.testing.assert_array_equal(alone[1], batched[1])
+    assert alone[2].keys() == batched[2].keys()
+    for name in alone[2]:
+        for key, tensor in alone[2][name].items():
+            assert torch.equal(tensor, batched[2][name][key]), (name, key)
+    assert json.loads((dirs[1] / "config.json").read_text()) == config.to_dict()
+    assert json.loads((dirs[0] / "config.json").read_text())["seed"] == 1
+    assert seed_files(dirs[0])[0] != batched[0], "different seeds must give different results"
+
+
+def checkpoints_of_a_run_stopped_at(config, seeds, steps, directory):
+    """Per seed, the (latest, previous) checkpoints of `config` trained to `steps`, as `config` itself
+    would have written them on the way (same trajectory; only the configured length differs)."""
+    dirs = [directory / f"seed{s}" for s in seeds]
+    train(dataclasses.replace(config, steps=steps), dirs, seeds=seeds, progress=False)
+    pairs = []
+    for seed, d in zip(seeds, dirs):
+        states = [torch.load(d / name, weights_only=False) for name in ("checkpoint.pt", "checkpoint.prev.pt")]
+        for state in states:
+            state["config"] = dataclasses.replace(config, seed=seed).to_dict()
+        pairs.append(states)
+    return pairs
+
+
+def test_a_batch_resumes_when_a_kill_left_seeds_one_checkpoint_apart(tmp_path):
+    config = tiny_config("auxss", steps=500)
+    full_dirs = [tmp_path / f"full/seed{s}" for s in (0, 1)]
+    train(config, full_dirs, seeds=[0, 1], progress=False)
+
+    # Killed between the two seeds' checkpoint writes at step 400: seed 0 has 400 (and 300 as prev),
+    # seed 1 still has 300 (and 200). The resume must continue both from 300.
+    ahead = checkpoints_of_a_run_stopped_at(config, [0, 1], 400, tmp_path / "at400")[0]
+    behind = checkpoints_of_a_run_stopped_at(config, [0, 1], 300, tmp_path / "at300")[1]
+    dirs = [tmp_path / f"killed/seed{s}" for s in (0, 1)]
+    for source, target, states in zip(full_dirs, dirs, (ahead, behind)):
+        target.mkdir(parents=True)
+        shutil.copy(source / "config.json", target / "config.json")
+        for name, state in zip(("checkpoint.pt", "checkpoint.prev.pt"), states):
+            torch.save(state, target / name)
+    assert [s["step"] for s in ahead + behind] == [400, 300, 300, 200]
+    resumed = train(config, dirs, seeds=[0, 1], resume=True, progress=False)
+    assert resumed.step == 500
+    for source, target in zip(full_dirs, dirs):
+        assert without_wall_time(read_metrics(target / "metrics.csv")) == \
+            without_wall_time(read_metrics(source / "metrics.csv"))
+
+
+def test_a_batch_refuses_seeds_whose_checkpoints_share_no_step(tmp_path):
+    config = tiny_config("auxss", steps=500)
+    early = checkpoints_of_a_run_stopped_at(config, [0], 200, tmp_path / "early")[0]
+    late = checkpoints_of_a_run_stopped_at(config, [1], 400, tmp_path / "late")[0]
+    dirs = [tmp_path / f"mixed/seed{s}" for s in (0, 1)]
+    for d, states in zip(dirs, (early, late)):
+        d.mkdir(parents=True)
+        torch.save(states[0], d / "checkpoint.pt")
+    with pytest.raises(ValueError, match="different steps"):
+        train(config, dirs, seeds=[0, 1], resume=True, progress=False)
+
+
+def test_cli_trains_several_seeds_into_one_directory_each(tmp_path, capsys):
+    code = cli.main(["--method", "uniform_ss", "--seeds", "2,5", "--steps", "200", "--eval-every", "100",
+                     "--eval-episodes", "2", "--out", str(tmp_path), "--no-progress"])
+    assert code == 0
+    for seed in (2, 5):
+        assert [int(r["step"]) for r in read_metrics(tmp_path / f"seed{seed}/metrics.csv")] == [100, 200]
+        assert json.loads((tmp_path / f"seed{seed}/config.json").read_text())["seed"] == seed
+    out = capsys.readouterr().out
+    assert "uniform_ss seed 2: 200 steps" in out and "uniform_ss seed 5: 200 steps" in out
+
+
+def test_cli_refuses_a_batch_when_any_seed_directory_holds_a_run(tmp_path, capsys):
+    (tmp_path / "seed1").mkdir()
+    (tmp_path / "seed1/config.json").write_text("{}")
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(["--method", "auxss", "--seeds", "0-2", "--out", str(tmp_path)])
+    assert exit_info.value.code == 2
+    assert "seed1 already holds a run" in capsys.readouterr().err
+    assert not (tmp_path / "seed0").exists(), "a refused batch must write nothing"

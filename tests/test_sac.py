@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 import torch
 
-from lava_bridge_mj.agents.networks import MLP, TanhGaussianActor, TwinQ, soft_update
+from lava_bridge_mj.agents.networks import MLP, StackedLinear, TanhGaussianActor, TwinQ, soft_update
 from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
-from lava_bridge_mj.agents.sac import SAC, SACConfig, bellman_target
+from lava_bridge_mj.agents.sac import SAC, SACConfig, bellman_target, stack_batches
 
 SMALL = SACConfig(hidden_sizes=(64, 64), batch_size=64, learning_starts=400)
 
@@ -56,19 +56,19 @@ def success_rate(policy, episodes):
 
 def train_on_reach_right(seed, steps, config=SMALL):
     """The runner's loop in miniature: random actions, then act / store / one update per step."""
-    env, agent = ReachRight(), SAC(2, 1, config, seed)
+    env, agent = ReachRight(), SAC(2, 1, config, seeds=[seed])
     buffer, rng = ReplayBuffer(config.buffer_size, 2, 1), np.random.default_rng(seed)
     obs = env.reset()
     for step in range(steps):
         if step < config.learning_starts:
             action = rng.uniform(-1.0, 1.0, 1).astype(np.float32)
         else:
-            action = agent.act(obs)
+            action = agent.act(obs[None])[0]
         next_obs, reward, terminated, truncated = env.step(action)
         buffer.add(obs, action, reward, next_obs, terminated)
         obs = env.reset() if terminated or truncated else next_obs
         if step >= config.learning_starts:
-            agent.update(buffer.sample(config.batch_size, rng))
+            agent.update(stack_batches([buffer.sample(config.batch_size, rng)]))
     return agent
 
 
@@ -80,9 +80,15 @@ def filled_buffer(n=500, seed=0):
     return buffer
 
 
-def parameters(agent):
-    return torch.cat([p.detach().flatten() for net in (agent.actor, agent.critic, agent.target_critic)
-                      for p in net.parameters()] + [agent.log_alpha.detach().view(1)])
+def parameters(agent, i=0):
+    """Seed i's parameters, flattened into one vector."""
+    return torch.cat([p.detach()[i].flatten() for net in (agent.actor, agent.critic, agent.target_critic)
+                      for p in net.parameters()] + [agent.log_alpha.detach()[i].view(1)])
+
+
+def policy(agent, deterministic=False):
+    """A single-seed agent as a map from one observation (or a batch of them) to actions."""
+    return lambda obs: agent.act(np.asarray(obs, dtype=np.float32)[None], deterministic=deterministic)[0]
 
 
 # --- learning -------------------------------------------------------------------------------------
@@ -92,16 +98,17 @@ def test_sac_solves_a_tiny_sparse_task_that_random_actions_rarely_solve():
     random_rate = success_rate(lambda obs: rng.uniform(-1.0, 1.0, 1), 1_000)
     agent = train_on_reach_right(seed=0, steps=1_500)
     assert random_rate < 0.3
-    assert success_rate(lambda obs: agent.act(obs, deterministic=True), 1) == 1.0  # the env is deterministic
-    assert success_rate(agent.act, 100) >= 0.9
+    assert success_rate(policy(agent, deterministic=True), 1) == 1.0  # the env is deterministic
+    assert success_rate(policy(agent), 100) >= 0.9
 
 
-def test_update_returns_finite_scalar_metrics():
-    agent, buffer = SAC(4, 2, SMALL, seed=0), filled_buffer()
-    metrics = agent.update(buffer.sample(64, np.random.default_rng(0)))
+def test_update_returns_finite_per_seed_metrics():
+    agent, buffer, rng = SAC(4, 2, SMALL, seeds=[0, 1, 2]), filled_buffer(), np.random.default_rng(0)
+    metrics = agent.update(stack_batches([buffer.sample(64, rng) for _ in range(3)]))
     assert set(metrics) == {"critic_loss", "actor_loss", "alpha", "q_mean", "entropy"}
-    assert all(isinstance(v, float) and np.isfinite(v) for v in metrics.values())
-    assert metrics["alpha"] == pytest.approx(SMALL.initial_alpha)
+    assert all(v.shape == (3,) and np.isfinite(v).all() for v in metrics.values())
+    np.testing.assert_allclose(metrics["alpha"], SMALL.initial_alpha, rtol=1e-6)
+    assert len(set(metrics["critic_loss"].tolist())) == 3, "seeds saw different data and weights"
 
 
 # --- the Bellman target: termination cuts the future, truncation bootstraps --------------------------
@@ -115,18 +122,18 @@ def test_bellman_target_by_hand():
 
 
 def test_sac_td_target_bootstraps_truncated_but_not_terminated_transitions():
-    agent = SAC(4, 2, SACConfig(hidden_sizes=(16, 16), gamma=0.9, initial_alpha=0.5), seed=3)
+    agent = SAC(4, 2, SACConfig(hidden_sizes=(16, 16), gamma=0.9, initial_alpha=0.5), seeds=[3])
     # Two copies of one transition: the first truncated (terminated = 0), the second terminated.
-    batch = {"obs": torch.ones(2, 4), "action": torch.zeros(2, 2), "reward": torch.tensor([0.5, 0.5]),
-             "next_obs": torch.full((2, 4), 0.3), "terminated": torch.tensor([0.0, 1.0])}
-    noise_state = agent.generator.get_state()
-    target = agent.td_target(batch)
+    batch = {"obs": torch.ones(1, 2, 4), "action": torch.zeros(1, 2, 2), "reward": torch.tensor([[0.5, 0.5]]),
+             "next_obs": torch.full((1, 2, 4), 0.3), "terminated": torch.tensor([[0.0, 1.0]])}
+    noise_state = agent.generators[0].get_state()
+    target = agent.td_target(batch)[0]
 
-    agent.generator.set_state(noise_state)  # redraw the same next actions by hand
+    agent.generators[0].set_state(noise_state)  # redraw the same next actions by hand
     with torch.no_grad():
-        next_action, next_log_prob = agent.actor(batch["next_obs"], generator=agent.generator)
+        next_action, next_log_prob = agent.actor(batch["next_obs"], generators=agent.generators)
         q1, q2 = agent.target_critic.both(batch["next_obs"], next_action)
-        soft_value = torch.minimum(q1, q2) - 0.5 * next_log_prob
+        soft_value = (torch.minimum(q1, q2) - 0.5 * next_log_prob)[0]
     torch.testing.assert_close(target[0], 0.5 + 0.9 * soft_value[0])
     torch.testing.assert_close(target[1], torch.tensor(0.5))
     assert abs(soft_value[0].item()) > 1e-3  # otherwise the first check could not tell the two apart
@@ -135,19 +142,36 @@ def test_sac_td_target_bootstraps_truncated_but_not_terminated_transitions():
 # --- networks --------------------------------------------------------------------------------------
 
 def test_mlp_and_twin_q_shapes():
-    net = MLP(3, 5, (7, 11))
-    assert [m.out_features for m in net if isinstance(m, torch.nn.Linear)] == [7, 11, 5]
-    q = TwinQ(4, 2, (8,))
-    q1, q2 = q.both(torch.randn(6, 4), torch.randn(6, 2))
-    assert q1.shape == q2.shape == (6,) and not torch.equal(q1, q2)
-    torch.testing.assert_close(q(torch.randn(6, 4), torch.randn(6, 2)).shape, torch.Size([6]))
+    net = MLP(2, 3, 5, (7, 11))
+    assert [tuple(m.weight.shape) for m in net if isinstance(m, StackedLinear)] == [(2, 3, 7), (2, 7, 11), (2, 11, 5)]
+    q = TwinQ(2, 4, 2, (8,))
+    for module in (net, q):
+        for p in module.parameters():
+            torch.nn.init.uniform_(p, -1, 1)
+    q1, q2 = q.both(torch.randn(2, 6, 4), torch.randn(2, 6, 2))
+    assert q1.shape == q2.shape == (2, 6) and not torch.equal(q1, q2)
+    assert q(torch.randn(2, 6, 4), torch.randn(2, 6, 2)).shape == (2, 6)
+
+
+def test_stacked_linear_is_one_linear_layer_per_member():
+    layer = StackedLinear(3, 4, 5)
+    for i in range(3):
+        layer.init_member(i, torch.Generator().manual_seed(i))
+    x = torch.randn(3, 7, 4)
+    for i in range(3):
+        torch.testing.assert_close(layer(x)[i], x[i] @ layer.weight[i] + layer.bias[i])
+    assert not torch.equal(layer.weight[0], layer.weight[1])
+    bound = 1 / 2  # nn.Linear's U(-1/sqrt(in), 1/sqrt(in)) with in = 4
+    assert layer.weight.abs().max() <= bound and layer.bias.abs().max() <= bound
 
 
 def test_tanh_gaussian_log_prob_matches_torch_distributions():
     torch.manual_seed(0)
-    actor = TanhGaussianActor(4, 3, (32,))
-    obs = torch.randn(500, 4)
-    action, log_prob = actor(obs, generator=torch.Generator().manual_seed(0))
+    actor = TanhGaussianActor(1, 4, 3, (32,))
+    for p in actor.parameters():
+        torch.nn.init.uniform_(p, -0.3, 0.3)
+    obs = torch.randn(1, 500, 4)
+    action, log_prob = actor(obs, generators=[torch.Generator().manual_seed(0)])
     mean, log_std = actor.distribution(obs)
     reference = torch.distributions.TransformedDistribution(
         torch.distributions.Independent(torch.distributions.Normal(mean, log_std.exp()), 1),
@@ -160,8 +184,10 @@ def test_tanh_gaussian_log_prob_matches_torch_distributions():
 
 
 def test_deterministic_action_is_tanh_of_mean():
-    actor = TanhGaussianActor(4, 2)
-    obs = torch.randn(3, 4)
+    actor = TanhGaussianActor(2, 4, 2)
+    for p in actor.parameters():
+        torch.nn.init.uniform_(p, -0.3, 0.3)
+    obs = torch.randn(2, 3, 4)
     action, _ = actor(obs, deterministic=True)
     torch.testing.assert_close(action, torch.tanh(actor.distribution(obs)[0]))
 
@@ -214,39 +240,66 @@ def test_replay_buffer_sampling_is_seeded():
 
 # --- reproducibility and exact resume --------------------------------------------------------------
 
-def run_updates(seed, n, buffer):
-    agent, rng = SAC(4, 2, SMALL, seed=seed), np.random.default_rng(seed)
+def run_updates(seeds, n, buffer):
+    """n updates of a batch of seeds, seed s sampling its minibatches with default_rng(s)."""
+    agent, rngs = SAC(4, 2, SMALL, seeds=seeds), [np.random.default_rng(s) for s in seeds]
     for _ in range(n):
-        agent.update(buffer.sample(64, rng))
+        agent.update(stack_batches([buffer.sample(64, rng) for rng in rngs]))
     return agent
 
 
 def test_same_seed_gives_identical_parameters_whatever_the_global_rng():
     buffer = filled_buffer()
     torch.manual_seed(123)
-    first = run_updates(0, 20, buffer)
+    first = run_updates([0], 20, buffer)
     torch.rand(1000)  # disturb torch's global RNG: the agent must not depend on it
-    second = run_updates(0, 20, buffer)
-    other = run_updates(1, 20, buffer)
+    second = run_updates([0], 20, buffer)
+    other = run_updates([1], 20, buffer)
     assert torch.equal(parameters(first), parameters(second))
     assert not torch.equal(parameters(first), parameters(other))
 
 
-def test_state_dict_round_trip_gives_identical_actions_and_next_update():
-    buffer, rng = filled_buffer(), np.random.default_rng(0)
-    agent = run_updates(0, 10, buffer)
-    checkpoint = io.BytesIO()
-    torch.save(agent.state_dict(), checkpoint)
-    checkpoint.seek(0)
-    restored = SAC(4, 2, SMALL, seed=99)
-    restored.load_state_dict(torch.load(checkpoint))
-    assert torch.equal(parameters(restored), parameters(agent))
+def test_a_seed_is_bit_identical_alone_and_inside_a_batch():
+    """Seed 3 trained alone and as the second of four seeds: same weights, actions and statistics."""
+    buffer = filled_buffer()
+    alone, batched = run_updates([3], 15, buffer), run_updates([0, 3, 5, 8], 15, buffer)
+    assert torch.equal(parameters(alone), parameters(batched, 1))
+    assert not torch.equal(parameters(batched, 0), parameters(batched, 1))
+    obs = np.random.default_rng(1).normal(size=(4, 6, 4)).astype(np.float32)
+    np.testing.assert_array_equal(alone.act(obs[1:2])[0], batched.act(obs)[1])  # noise from seed 3's generator
+    stats_alone = alone.update(stack_batches([buffer.sample(64, np.random.default_rng(9))]))
+    stats_batched = batched.update(stack_batches([buffer.sample(64, np.random.default_rng(s)) for s in (5, 9, 6, 7)]))
+    for name, values in stats_alone.items():
+        assert values[0] == stats_batched[name][1], name
 
-    obs = np.random.default_rng(1).normal(size=(5, 4)).astype(np.float32)
-    np.testing.assert_array_equal(restored.act(obs, deterministic=True), agent.act(obs, deterministic=True))
-    np.testing.assert_array_equal(restored.act(obs), agent.act(obs))  # same noise: generator restored
-    batch = buffer.sample(64, rng)
-    assert restored.update(batch) == agent.update(batch)
-    assert torch.equal(parameters(restored), parameters(agent))
-    restored_adam = restored.actor_optimizer.state_dict()["state"][0]["exp_avg"]
-    assert torch.equal(restored_adam, agent.actor_optimizer.state_dict()["state"][0]["exp_avg"])
+
+def test_seed_states_round_trip_into_another_batch():
+    """Checkpoints are per seed: seeds 0 and 5 of one batch continue exactly as seeds of a new batch."""
+    buffer = filled_buffer()
+    agent = run_updates([0, 2, 5], 10, buffer)
+    saved = io.BytesIO()
+    torch.save([agent.seed_state(0), agent.seed_state(2)], saved)
+    saved.seek(0)
+    restored = SAC(4, 2, SMALL, seeds=[0, 5])
+    restored.load_seed_states(torch.load(saved))
+    assert torch.equal(parameters(restored, 0), parameters(agent, 0))
+    assert torch.equal(parameters(restored, 1), parameters(agent, 2))
+
+    obs = np.random.default_rng(1).normal(size=(3, 5, 4)).astype(np.float32)
+    np.testing.assert_array_equal(restored.act(obs[[0, 2]], deterministic=True), agent.act(obs, deterministic=True)[[0, 2]])
+    np.testing.assert_array_equal(restored.act(obs[[0, 2]]), agent.act(obs)[[0, 2]])  # generators restored
+    batch = stack_batches([buffer.sample(64, np.random.default_rng(i)) for i in range(3)])
+    restored.update({name: value[[0, 2]] for name, value in batch.items()})
+    agent.update(batch)
+    assert torch.equal(parameters(restored, 1), parameters(agent, 2))
+    exp_avg = restored.actor_optimizer.state_dict()["state"][0]["exp_avg"]
+    assert torch.equal(exp_avg, agent.actor_optimizer.state_dict()["state"][0]["exp_avg"][[0, 2]])
+
+
+def test_seed_states_of_different_steps_or_seeds_are_refused():
+    buffer = filled_buffer()
+    early, late = run_updates([0], 2, buffer), run_updates([1], 3, buffer)
+    with pytest.raises(ValueError, match="same step"):
+        SAC(4, 2, SMALL, seeds=[0, 1]).load_seed_states([early.seed_state(0), late.seed_state(0)])
+    with pytest.raises(ValueError, match=r"cannot load into seeds \[4\]"):
+        SAC(4, 2, SMALL, seeds=[4]).load_seed_states([early.seed_state(0)])
