@@ -11,6 +11,14 @@ pre-generated uniform random actions:
 Target: (a) / (c) >= 0.5, i.e. the gymnasium layer (validation, per-physics-step lava and goal
 checks, observation copies, wrappers) at most doubles the cost of the physics it drives.
 
+Then vector envs at K = 1, 8, 32 sub-envs, the same total number of env steps:
+
+  (e) gymnasium.make_vec("LavaBridge-v0", num_envs=K): the native LavaBridgeVectorEnv
+  (f) gymnasium.vector.SyncVectorEnv over K gymnasium.make envs
+
+Target: (e) at K = 32 >= 0.5 x (d), i.e. an env step inside the vector env costs at most twice
+the raw C-looped physics of one env.
+
     python bench/env_throughput.py            # 50k env steps per loop, best of 3
     python bench/env_throughput.py --quick    # a few hundred steps: a smoke test for CI
 """
@@ -59,6 +67,12 @@ def run_mj_step_nstep(model, data, actions: np.ndarray, frame_skip: int) -> None
     for action in actions:
         data.ctrl[:] = action
         mujoco.mj_step(model, data, nstep=frame_skip)
+
+
+def run_vector(envs, actions: np.ndarray) -> None:
+    """actions: (steps, K, 2); autoreset is the vector env's own (next step)."""
+    for batch in actions:
+        envs.step(batch)
 
 
 def best_rate(run, n_steps: int, repeats: int) -> float:
@@ -124,10 +138,28 @@ def main(argv: list[str] | None = None) -> None:
     print()
     for label, ratio in (("(a)/(c)", a / c), ("(a)/(d)", a / d), ("(b)/(c)", b / c), ("(b)/(d)", b / d)):
         print(f"ratio {label}: {ratio:.3f}")
+    vector_rates = {}
+    for k in (1, 8, 32):
+        batches = rng.uniform(-1, 1, size=(max(1, n // k), k, 2)).astype(np.float32)
+        for label, envs in ((f"(e) make_vec native, K={k}", gymnasium.make_vec("LavaBridge-v0", num_envs=k)),
+                            (f"(f) SyncVectorEnv, K={k}", gymnasium.make_vec("LavaBridge-v0", num_envs=k,
+                                                                              vectorization_mode="sync"))):
+            envs.reset(seed=args.seed)
+            run_vector(envs, batches[: max(1, 1000 // k)])
+            vector_rates[label] = best_rate(lambda: run_vector(envs, batches), batches.shape[0] * k, args.repeats)
+            envs.close()
+    print(f"\n{'vector env':<34} {'env steps/s':>12} {'us/env step':>12} {'x (d)':>8}")
+    for name, rate in vector_rates.items():
+        print(f"{name:<34} {rate:>12,.0f} {1e6 / rate:>12.1f} {rate / d:>8.3f}")
+    native32, sync32 = vector_rates["(e) make_vec native, K=32"], vector_rates["(f) SyncVectorEnv, K=32"]
+    print(f"native / SyncVectorEnv at K=32: {native32 / sync32:.2f}x")
+
     met = a / c >= TARGET_RATIO
     print(f"\ntarget (a)/(c) >= {TARGET_RATIO} (gymnasium layer costs at most 2x the raw mj_step loop): "
           f"{'MET' if met else 'NOT MET'} ({a / c:.3f}); against C-looped physics (a)/(d) = {a / d:.3f}"
           f" {'>=' if a / d >= TARGET_RATIO else '<'} {TARGET_RATIO}")
+    print(f"target (e) at K=32 >= {TARGET_RATIO} x (d): {'MET' if native32 / d >= TARGET_RATIO else 'NOT MET'} "
+          f"({native32 / d:.3f})")
 
 
 if __name__ == "__main__":

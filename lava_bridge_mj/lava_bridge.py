@@ -140,12 +140,13 @@ class LavaBridgeEnv(gymnasium.Env):
         """
         self._set_checked_state(*self._check_state(qpos, qvel))
 
-    def _set_checked_state(self, qpos: np.ndarray, qvel: np.ndarray) -> None:
-        mujoco.mj_resetData(self.model, self.data)  # zero time, controls and solver state: deterministic
-        self.data.qpos[:] = qpos
-        self.data.qvel[:] = qvel
+    def _set_checked_state(self, qpos: np.ndarray, qvel: np.ndarray, data: mujoco.MjData | None = None) -> None:
+        data = self.data if data is None else data
+        mujoco.mj_resetData(self.model, data)  # zero time, controls and solver state: deterministic
+        data.qpos[:] = qpos
+        data.qvel[:] = qvel
         # step() expects position- and velocity-dependent quantities (contacts) to be current
-        mujoco.mj_forward(self.model, self.data)
+        mujoco.mj_forward(self.model, data)
 
     def _check_state(self, qpos: Any, qvel: Any) -> tuple[np.ndarray, np.ndarray]:
         qpos = self._as_vector("qpos", qpos)
@@ -213,12 +214,23 @@ class LavaBridgeEnv(gymnasium.Env):
         return name
 
     def step(self, action):
+        reward, lava, success = self._advance(self.data, self._checked_action(action))
+        info = {"is_success": success, "lava": lava}
+        return self.get_state(), reward, lava or success, False, info
+
+    @staticmethod
+    def _checked_action(action: Any) -> np.ndarray:
         action = np.asarray(action, dtype=np.float64)
         if action.shape != (2,):
             raise ValueError(f"action must have shape (2,), got shape {action.shape}")
         if not (math.isfinite(action[0]) and math.isfinite(action[1])):
             raise ValueError(f"action must be finite, got {action}")
-        model, data = self.model, self.data
+        return action
+
+    def _advance(self, data: mujoco.MjData, action: np.ndarray) -> tuple[float, bool, bool]:
+        """One env step of `data` (frame_skip physics steps) under a checked action: (reward, lava, success).
+        The vector env steps each of its MjData through this too, so both share the task's dynamics."""
+        model = self.model
         data.ctrl[:] = action  # MuJoCo clips to the actuators' ctrlrange [-1, 1]
         lava = success = False
         # mj_step split in two so contacts are current for the state just reached: lava and the
@@ -232,8 +244,7 @@ class LavaBridgeEnv(gymnasium.Env):
                     lava, success = LAVA in events, GOAL in events
                     break
         reward = self.goal_reward if success else self.lava_reward if lava else self.step_reward
-        info = {"is_success": success, "lava": lava}
-        return self.get_state(), reward, lava or success, False, info
+        return reward, lava, success
 
     def render(self):
         if self.render_mode != "rgb_array":

@@ -1,0 +1,142 @@
+"""LavaBridgeVectorEnv: K LavaBridge-v0 episodes on one compiled MuJoCo model, one MjData each.
+
+`gymnasium.make_vec("LavaBridge-v0", num_envs=K)` returns it (the spec's `vector_entry_point`).
+It behaves exactly like `gymnasium.vector.SyncVectorEnv` over K `gymnasium.make("LavaBridge-v0")`
+envs (tests/test_vector_env.py checks step by step): sub-env i is seeded with `seed + i`, episodes
+truncate at `max_episode_steps`, and the autoreset is gymnasium's default, next-step: the step after an
+episode ends resets that sub-env (from p0) and returns its first observation with reward 0. It saves
+what the generic wrapper pays for: K compiled models, K wrapper stacks, per-env info dictionaries.
+
+Reset options (all optional, one of "state" / "start"):
+    {"state": array (K, 4)}      reset sub-env i to state[i]
+    {"start": "p0" | "ood"}      sample every reset sub-env from a named start distribution
+    {"reset_mask": bool (K,)}    reset only these sub-envs (the others keep going); with "state",
+                                 rows of the others are ignored
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import mujoco
+import numpy as np
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from lava_bridge_mj.lava_bridge import MAX_EPISODE_STEPS, LavaBridgeEnv
+
+VECTOR_RESET_KEYS = ("state", "start", "reset_mask")
+
+
+class LavaBridgeVectorEnv(VectorEnv):
+    """K LavaBridge-v0 envs stepped together; see the module docstring for the semantics.
+
+    Args:
+        num_envs: K.
+        max_episode_steps: the time limit (500, the paper's horizon).
+        **env_kwargs: LavaBridgeEnv's arguments (rewards, Layout fields), shared by every sub-env.
+    """
+
+    metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, num_envs: int = 1, max_episode_steps: int = MAX_EPISODE_STEPS, **env_kwargs: Any):
+        if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
+            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+        if "render_mode" in env_kwargs and env_kwargs["render_mode"] is not None:
+            raise ValueError("LavaBridgeVectorEnv does not render; render a single LavaBridgeEnv instead")
+        env_kwargs.pop("render_mode", None)
+        self.task = LavaBridgeEnv(**env_kwargs)  # the model, rewards, state checks and start distributions
+        self.num_envs = num_envs
+        self.max_episode_steps = max_episode_steps
+        self.datas = [mujoco.MjData(self.task.model) for _ in range(num_envs)]
+        self.single_observation_space = self.task.observation_space
+        self.single_action_space = self.task.action_space
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        self.rngs = [seeding.np_random()[0] for _ in range(num_envs)]
+        self.episode_steps = np.zeros(num_envs, dtype=np.int64)
+        self.autoreset = np.zeros(num_envs, dtype=bool)  # sub-env ended last step: the next step resets it
+        self.render_mode = None
+
+    def reset(self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None):
+        mask, starts = self._parse_reset_options(options or {})  # raises before anything changes
+        seeds = self._seeds(seed)
+        for i in np.flatnonzero(mask):
+            if seeds[i] is not None:
+                self.rngs[i] = seeding.np_random(seeds[i])[0]
+            self._reset_one(i, starts[i])
+        self.autoreset[mask] = False
+        return self._observations(), self._info(np.zeros(self.num_envs, bool), np.zeros(self.num_envs, bool))
+
+    def step(self, actions):
+        actions = np.asarray(actions, dtype=np.float64)
+        if actions.shape != (self.num_envs, 2):
+            raise ValueError(f"actions must have shape ({self.num_envs}, 2), got shape {actions.shape}")
+        task = self.task
+        rewards = np.zeros(self.num_envs)
+        lava = np.zeros(self.num_envs, dtype=bool)
+        success = np.zeros(self.num_envs, dtype=bool)
+        for i, data in enumerate(self.datas):
+            if self.autoreset[i]:
+                self._reset_one(i, "p0")
+                continue
+            rewards[i], lava[i], success[i] = task._advance(data, task._checked_action(actions[i]))
+            self.episode_steps[i] += 1
+        terminated = lava | success
+        truncated = ~terminated & ~self.autoreset & (self.episode_steps >= self.max_episode_steps)
+        self.autoreset = terminated | truncated
+        return self._observations(), rewards, terminated, truncated, self._info(success, lava)
+
+    # --- pieces ---------------------------------------------------------------------------------
+    def _reset_one(self, i: int, start: str | tuple[np.ndarray, np.ndarray]) -> None:
+        if isinstance(start, str):
+            state = self.task.start_distributions[start].sample(self.rngs[i])
+            start = (state[:2], state[2:])
+        self.task._set_checked_state(*start, data=self.datas[i])
+        self.episode_steps[i] = 0
+
+    def _parse_reset_options(self, options: dict[str, Any]) -> tuple[np.ndarray, list]:
+        """(which sub-envs reset, each one's start: a distribution name or a checked (qpos, qvel))."""
+        if not isinstance(options, dict):
+            raise ValueError(f"reset options must be a dict, got {type(options).__name__}")
+        unknown = set(options) - set(VECTOR_RESET_KEYS)
+        if unknown:
+            raise ValueError(f"unknown reset options {sorted(unknown)}; expected some of {VECTOR_RESET_KEYS}")
+        if "state" in options and "start" in options:
+            raise ValueError("reset options 'state' and 'start' conflict: give one")
+        mask = np.ones(self.num_envs, dtype=bool)
+        if "reset_mask" in options:
+            mask = np.asarray(options["reset_mask"])
+            if mask.shape != (self.num_envs,) or mask.dtype != bool:
+                raise ValueError(f"reset_mask must be a bool array of shape ({self.num_envs},), got {options['reset_mask']!r}")
+        if "state" in options:
+            states = np.asarray(options["state"], dtype=np.float64)
+            if states.shape != (self.num_envs, 4):
+                raise ValueError(f"reset option 'state' must have shape ({self.num_envs}, 4), got {states.shape}")
+            starts = [self.task._check_state(s[:2], s[2:]) if m else None for s, m in zip(states, mask)]
+        else:
+            name = options.get("start", "p0")
+            self.task._parse_reset_options({"start": name})  # the single env's check and message
+            starts = [name] * self.num_envs
+        return mask, starts
+
+    def _seeds(self, seed: int | list[int | None] | None) -> list[int | None]:
+        if seed is None:
+            return [None] * self.num_envs
+        if isinstance(seed, int):
+            return [seed + i for i in range(self.num_envs)]  # as SyncVectorEnv seeds its sub-envs
+        if len(seed) != self.num_envs:
+            raise ValueError(f"expected {self.num_envs} seeds, got {len(seed)}")
+        return list(seed)
+
+    def _observations(self) -> np.ndarray:
+        return np.stack([np.concatenate([d.qpos, d.qvel]) for d in self.datas])
+
+    def _info(self, success: np.ndarray, lava: np.ndarray) -> dict[str, np.ndarray]:
+        every = np.ones(self.num_envs, dtype=bool)  # gymnasium's vector info: a value and a presence mask
+        return {"is_success": success, "_is_success": every, "lava": lava, "_lava": every.copy()}
+
+    def get_state(self) -> np.ndarray:
+        """The physics states (K, 4): identical to the observations."""
+        return self._observations()
