@@ -65,7 +65,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--method", required=True, choices=METHODS,
                         help="sac: plain SAC from p0; auxss: the paper's episode-length start-state "
                              "safety; omega_ss: random-policy Monte-Carlo safety; uniform_ss: uniform "
-                             "over demo states; goaldist_ss: goal-distance weighted, flattening over time")
+                             "over demo states; goaldist_ss: goal-distance weighted, flattening over time; "
+                             "hysac: SAC from p0 whose minibatches are half demo transitions (HyQ); "
+                             "hysac_auxss: both HySAC's replay and AuxSS's start states")
     seeds = parser.add_mutually_exclusive_group()
     seeds.add_argument("--seed", type=_seed, help=f"random seed of the run (default: {DEFAULTS.seed})")
     seeds.add_argument("--seeds", type=parse_seeds, metavar="LIST",

@@ -56,8 +56,12 @@ METHOD_STRATEGIES = {
     "omega_ss": "omega_ss",
     "uniform_ss": "uniform_ss",
     "goaldist_ss": "goaldist_ss",
+    "hysac": "p0",
+    "hysac_auxss": "auxss",
 }
 """Training methods (CLI names) and the start strategy each trains SAC with."""
+HYBRID_METHODS = ("hysac", "hysac_auxss")
+"""Methods whose minibatches mix demo transitions into the online ones (HyQ with SAC)."""
 METHODS = tuple(METHOD_STRATEGIES)
 METRIC_FIELDS = ("step", "episodes", "success_p0", "success_ood", "return_p0", "return_ood",
                  "train_return", "train_success", "q_mean", "alpha", "critic_loss", "wall_time")
@@ -85,16 +89,20 @@ class RunConfig:
     `steps=300_000` with `eval_every=10_000` is the paper's protocol."""
 
     method: str = "auxss"
-    """Training method: sac (start from p0) or SAC with a start strategy (auxss, omega_ss, uniform_ss, goaldist_ss)."""
+    """Training method: sac (start from p0), SAC with a start strategy (auxss, omega_ss, uniform_ss,
+    goaldist_ss), or HySAC, whose minibatches mix in the demo transitions (hysac from p0, hysac_auxss)."""
     seed: int = 0
     """Seeds the networks, the env, the start strategy, the replay sampling and the demo subset."""
     steps: int = 50_000
     """Online environment steps."""
     demos: int = 500
-    """Which shipped demo set the candidate start states come from (500 or 7500)."""
+    """Which shipped demo set the candidate start states (and HySAC's offline transitions) come from (500 or 7500)."""
     demo_subset: int = 150
     """Candidate start states: a seeded random subset of this many demo states (the paper's 150),
     the same set for every start strategy so that they differ only in how they sample it."""
+    hybrid_fraction: float = 0.5
+    """HySAC only: the share of every minibatch drawn from the demo transitions, which stay in their own
+    buffer for all of training (HyQ's half and half); the rest comes from the online replay buffer."""
     eval_every: int = 5_000
     """Evaluate (and checkpoint) every this many steps."""
     eval_episodes: int = 50
@@ -116,6 +124,9 @@ class RunConfig:
             value = getattr(self, name)
             if isinstance(value, bool) or not (isinstance(value, int) and value >= minimum):
                 raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+        fraction = self.hybrid_fraction
+        if isinstance(fraction, bool) or not isinstance(fraction, (int, float)) or not 0.0 <= fraction <= 1.0:
+            raise ValueError(f"hybrid_fraction must be a number in [0, 1], got {fraction!r}")
         if self.demos not in (500, 7500):
             raise ValueError(f"demos must be 500 or 7500, got {self.demos!r}")
         if not isinstance(self.env, dict):
@@ -169,6 +180,21 @@ def candidate_states(config: RunConfig) -> np.ndarray:
     return states[np.sort(rng.choice(len(states), size=size, replace=False))]
 
 
+def demo_buffer(config: RunConfig) -> ReplayBuffer:
+    """HySAC's offline buffer: every transition of the demo set, exactly full, never written again.
+
+    The shipped demos carry the default rewards (+1 at the goal, 0 otherwise; the expert never
+    touches lava); they are relabelled with the run's env rewards so both buffers agree."""
+    demos = lava_bridge_mj.load_demos(config.demos)
+    env = lava_bridge_mj.LavaBridgeEnv(**config.env)
+    rewards = np.where(demos["rewards"] == 1.0, env.goal_reward, env.step_reward)
+    buffer = ReplayBuffer(len(rewards), 4, 2)
+    for transition in zip(demos["observations"], demos["actions"], rewards, demos["next_observations"],
+                          demos["terminations"]):
+        buffer.add(*transition)
+    return buffer
+
+
 def make_strategy(config: RunConfig, states: np.ndarray, probe: lava_bridge_mj.LavaBridgeEnv):
     """The method's start strategy; `probe`, an env of the run's task, gives Omega-SS its safety
     rollouts and GoalDist-SS its goal (it is left at an arbitrary state)."""
@@ -193,6 +219,7 @@ class SeedRun:
         self.strategy = make_strategy(config, self.states, probe)
         self.env = StartStateWrapper(gymnasium.make(lava_bridge_mj.ENV_ID, **config.env), self.strategy, seed=seed)
         self.buffer = ReplayBuffer(config.sac.buffer_size, 4, 2)
+        self.offline = demo_buffer(config) if config.method in HYBRID_METHODS else None
         self.rng = np.random.default_rng(seed)  # warm-up actions and minibatch indices
         self.episodes = 0
         self.episode_return = 0.0
@@ -213,6 +240,16 @@ class SeedRun:
             self.recent.append((self.episode_return, bool(info["is_success"])))
             self.episode_return = 0.0
             self.obs, _ = self.env.reset()
+
+    def sample(self) -> dict[str, torch.Tensor]:
+        """A minibatch for this seed's update: online transitions, plus demo ones for HySAC."""
+        size = self.config.sac.batch_size
+        if self.offline is None:
+            return self.buffer.sample(size, self.rng)
+        n_offline = round(self.config.hybrid_fraction * size)
+        online = self.buffer.sample(size - n_offline, self.rng)
+        offline = self.offline.sample(n_offline, self.rng)
+        return {name: torch.cat([online[name], offline[name]]) for name in online}
 
     def record(self, step: int, p0: dict[str, float], ood: dict[str, float], actor: dict, elapsed: float) -> dict:
         """Append an evaluation row and write metrics, weights and the policy snapshot."""
@@ -368,7 +405,7 @@ class Run:
                 seed_run.step(action)
             self.step += 1
             if self.step >= sac.learning_starts:
-                stats = self.agent.update(stack_batches([s.buffer.sample(sac.batch_size, s.rng) for s in seed_runs]))
+                stats = self.agent.update(stack_batches([s.sample() for s in seed_runs]))
                 for i, seed_run in enumerate(seed_runs):
                     seed_run.last_update = {name: float(values[i]) for name, values in stats.items()}
             evaluation_due = self.step % config.eval_every == 0 or self.step == config.steps

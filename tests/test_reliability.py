@@ -137,6 +137,7 @@ def test_a_second_process_cannot_write_a_run_directory_in_use(config_file, tmp_p
     ('{"sac": {"gamma": 1.5}}', "gamma must be a number in (0, 1]"),
     ('{"strategy": {"sigmaa": 0.2}}', "unknown parameters ['sigmaa'] for start strategy 'auxss'"),
     ('{"demo_subset": 0}', "demo_subset must be an integer >= 1"),
+    ('{"hybrid_fraction": 1.5}', "hybrid_fraction must be a number in [0, 1], got 1.5"),
 ])
 def test_bad_config_files_are_refused_without_writing(tmp_path, content, message):
     config = tmp_path / "bad.json"

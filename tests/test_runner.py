@@ -9,9 +9,11 @@ import numpy as np
 import pytest
 import torch
 
+import lava_bridge_mj
+
 from lava_bridge_mj.agents.sac import SACConfig
 from lava_bridge_mj.eval import cli
-from lava_bridge_mj.eval.runner import METRIC_FIELDS, RunConfig, train
+from lava_bridge_mj.eval.runner import METHOD_STRATEGIES, METHODS, METRIC_FIELDS, Run, RunConfig, train
 
 TINY_SAC = SACConfig(hidden_sizes=(16, 16), batch_size=32, buffer_size=500, learning_starts=100)
 
@@ -31,7 +33,7 @@ def without_wall_time(rows):
     return [{k: v for k, v in row.items() if k != "wall_time"} for row in rows]
 
 
-@pytest.mark.parametrize("method", ["sac", "auxss", "omega_ss", "uniform_ss", "goaldist_ss"])
+@pytest.mark.parametrize("method", METHODS)
 def test_every_method_writes_a_complete_run_directory(tmp_path, method):
     config = tiny_config(method, steps=300)
     run = train(config, tmp_path, progress=False)
@@ -45,7 +47,7 @@ def test_every_method_writes_a_complete_run_directory(tmp_path, method):
     assert sorted(p.name for p in (tmp_path / "policies").iterdir()) == ["step_100.pt", "step_200.pt", "step_300.pt"]
     weights = np.load(tmp_path / "start_weights.npz")
     assert weights["steps"].tolist() == [100, 200, 300]
-    expected_states = 0 if method == "sac" else 20
+    expected_states = 0 if METHOD_STRATEGIES[method] == "p0" else 20
     assert weights["probabilities"].shape == (3, expected_states)
     assert weights["states"].shape == (20, 4)
     assert run.step == 300
@@ -65,8 +67,9 @@ def test_same_seed_same_metrics(tmp_path):
     assert without_wall_time(a) == without_wall_time(b)
 
 
-def test_resume_from_checkpoint_equals_uninterrupted_run(tmp_path):
-    config = tiny_config()
+@pytest.mark.parametrize("method", ["auxss", "hysac_auxss"])
+def test_resume_from_checkpoint_equals_uninterrupted_run(tmp_path, method):
+    config = tiny_config(method)
     full = train(config, tmp_path / "full", progress=False)
     checkpoint = torch.load(tmp_path / "full/checkpoint.prev.pt", weights_only=False)
     assert 0 < checkpoint["step"] < config.steps, "the test needs a checkpoint from the middle of the run"
@@ -247,3 +250,30 @@ def test_cli_refuses_a_batch_when_any_seed_directory_holds_a_run(tmp_path, capsy
     assert exit_info.value.code == 2
     assert "seed1 already holds a run" in capsys.readouterr().err
     assert not (tmp_path / "seed0").exists(), "a refused batch must write nothing"
+
+
+# --- HySAC: demo transitions in every minibatch -------------------------------------------------------
+
+@pytest.mark.parametrize("fraction, expected_offline", [(0.5, 16), (0.25, 8), (0.0, 0), (1.0, 32)])
+def test_hysac_minibatch_takes_the_configured_share_from_the_demos(tmp_path, fraction, expected_offline):
+    run = Run([tiny_config("hysac", hybrid_fraction=fraction)], [tmp_path])
+    seed_run = run.seed_runs[0]
+    for _ in range(50):  # online transitions that no demo can contain: observations of 100
+        seed_run.buffer.add(np.full(4, 100.0), np.zeros(2), 0.0, np.full(4, 100.0), False)
+    batch = seed_run.sample()
+    assert batch["obs"].shape == (32, 4)
+    from_demos = (batch["obs"][:, 0] != 100.0).sum().item()
+    assert from_demos == expected_offline
+    demo_obs = {tuple(o) for o in lava_bridge_mj.load_demos(500)["observations"].astype(np.float32).tolist()}
+    assert all(tuple(o) in demo_obs for o in batch["obs"][batch["obs"][:, 0] != 100.0].tolist())
+
+
+def test_hysac_offline_buffer_holds_every_demo_and_is_never_overwritten(tmp_path):
+    run = train(tiny_config("hysac", steps=300, env={"goal_reward": 2.0}), tmp_path, progress=False)
+    offline, demos = run.seed_runs[0].offline, lava_bridge_mj.load_demos(500)
+    assert len(offline) == offline.capacity == 500 and offline.pos == 0
+    np.testing.assert_array_equal(offline.obs, demos["observations"].astype(np.float32))
+    np.testing.assert_array_equal(offline.action, demos["actions"].astype(np.float32))
+    # relabelled with the run's rewards: the goal gives 2 here
+    np.testing.assert_array_equal(offline.reward, np.where(demos["rewards"] == 1.0, 2.0, 0.0))
+    assert offline.reward.sum() == 2.0 * demos["terminations"].sum()
