@@ -20,12 +20,12 @@ import copy
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import torch
 
 from .networks import TanhGaussianActor, TwinQ, init_member, soft_update
+from .seed_batch import SeedBatchedAgent
 
 
 @dataclass
@@ -83,7 +83,7 @@ def bellman_target(reward: torch.Tensor, terminated: torch.Tensor, next_value: t
     return reward + gamma * (1.0 - terminated) * next_value
 
 
-class SAC:
+class SAC(SeedBatchedAgent):
     """K seeds of SAC: actor, twin critics with a target copy, log(alpha), and their Adam optimisers,
     each with a leading axis of length K = len(seeds).
 
@@ -127,25 +127,9 @@ class SAC:
         self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=config.lr, foreach=True)
 
     @property
-    def num_seeds(self) -> int:
-        return len(self.seeds)
-
-    @property
     def alpha(self) -> np.ndarray:
         """The current entropy coefficients exp(log_alpha), one per seed."""
         return self.log_alpha.detach().exp().numpy().copy()
-
-    @torch.no_grad()
-    def act(self, obs: np.ndarray, deterministic: bool = False) -> np.ndarray:
-        """Actions in [-1, 1] for observations (K, obs_dim) or (K, n, obs_dim), seed i acting on obs[i]."""
-        obs_t = torch.as_tensor(obs, dtype=torch.float32)
-        single = obs_t.dim() == 2
-        if obs_t.dim() not in (2, 3) or obs_t.shape[0] != self.num_seeds:
-            raise ValueError(f"expected observations of shape ({self.num_seeds}, [n,] {self.obs_dim}), "
-                             f"got {tuple(obs_t.shape)}")
-        action, _ = self.actor(obs_t.unsqueeze(1) if single else obs_t, deterministic=deterministic,
-                               generators=self.generators)
-        return (action.squeeze(1) if single else action).numpy()
 
     @torch.no_grad()
     def td_target(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
@@ -192,71 +176,10 @@ class SAC:
                              0.5 * (q1.detach().mean(1) + q2.detach().mean(1)), -log_prob.mean(1)]).numpy()
         return dict(zip(("critic_loss", "actor_loss", "alpha", "q_mean", "entropy"), stats))
 
-    # --- checkpoints, one seed at a time -------------------------------------------------------------
-    def _state(self) -> dict[str, Any]:
+    def _parts(self) -> dict:
         return {
-            "actor": self.actor.state_dict(),
-            "critic": self.critic.state_dict(),
-            "target_critic": self.target_critic.state_dict(),
-            "log_alpha": self.log_alpha.detach(),
-            "actor_optimizer": self.actor_optimizer.state_dict(),
-            "critic_optimizer": self.critic_optimizer.state_dict(),
-            "alpha_optimizer": self.alpha_optimizer.state_dict(),
+            "actor": self.actor, "critic": self.critic, "target_critic": self.target_critic,
+            "log_alpha": self.log_alpha,
+            "actor_optimizer": self.actor_optimizer, "critic_optimizer": self.critic_optimizer,
+            "alpha_optimizer": self.alpha_optimizer,
         }
-
-    def seed_state(self, i: int) -> dict[str, Any]:
-        """Everything seed i needs to continue bit-identically (its replay buffer is separate): its
-        slice of every network, optimiser moment and log_alpha, with the seed axis kept (length 1)."""
-        state = _map_seed_axis(self._state(), lambda t: t[i:i + 1].clone())
-        state.update(seed=self.seeds[i], generator=self.generators[i].get_state())
-        return state
-
-    def load_seed_states(self, states: Sequence[dict[str, Any]]) -> None:
-        """Restore every seed from `seed_state` dicts, one per seed in order (possibly from different
-        runs' checkpoints); they must come from the same seeds and share optimiser step counts."""
-        if [s["seed"] for s in states] != list(self.seeds):
-            raise ValueError(f"states of seeds {[s['seed'] for s in states]} cannot load into seeds {list(self.seeds)}")
-        merged = _concat_seed_axis([{k: v for k, v in s.items() if k not in ("seed", "generator")} for s in states])
-        self.actor.load_state_dict(merged["actor"])
-        self.critic.load_state_dict(merged["critic"])
-        self.target_critic.load_state_dict(merged["target_critic"])
-        with torch.no_grad():
-            self.log_alpha.copy_(merged["log_alpha"])  # in place: the optimiser holds this tensor
-        self.actor_optimizer.load_state_dict(merged["actor_optimizer"])
-        self.critic_optimizer.load_state_dict(merged["critic_optimizer"])
-        self.alpha_optimizer.load_state_dict(merged["alpha_optimizer"])
-        for generator, state in zip(self.generators, states):
-            generator.set_state(state["generator"])
-
-
-def _map_seed_axis(tree: Any, fn) -> Any:
-    """Apply fn to every tensor with a seed axis (dim >= 1) in a nested dict/list; scalars such as
-    Adam's step count and non-tensors are shared by all seeds and kept."""
-    if isinstance(tree, dict):
-        return {key: _map_seed_axis(value, fn) for key, value in tree.items()}
-    if isinstance(tree, list):
-        return [_map_seed_axis(value, fn) for value in tree]
-    if isinstance(tree, torch.Tensor) and tree.dim() >= 1:
-        return fn(tree)
-    return tree
-
-
-def _concat_seed_axis(trees: Sequence[Any]) -> Any:
-    """Inverse of slicing with `_map_seed_axis`: concatenate per-seed tensors along the seed axis;
-    shared values (Adam's step count, hyperparameters) must agree across the trees."""
-    first = trees[0]
-    if isinstance(first, dict):
-        return {key: _concat_seed_axis([t[key] for t in trees]) for key in first}
-    if isinstance(first, list):
-        return [_concat_seed_axis([t[i] for t in trees]) for i in range(len(first))]
-    if isinstance(first, torch.Tensor) and first.dim() >= 1:
-        return torch.cat(trees)
-    if any(not (torch.equal(t, first) if isinstance(t, torch.Tensor) else t == first) for t in trees[1:]):
-        raise ValueError("seed states disagree on a shared value (e.g. optimiser step counts): "
-                         "only checkpoints taken at the same step can train in one batch")
-    return first
-
-
-def stack_batches(batches: Sequence[dict[str, torch.Tensor]]) -> dict[str, torch.Tensor]:
-    """One (K, B, ...) batch from K per-seed replay samples."""
-    return {name: torch.stack([b[name] for b in batches]) for name in batches[0]}

@@ -44,7 +44,9 @@ from tqdm.auto import tqdm
 
 import lava_bridge_mj
 from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
-from lava_bridge_mj.agents.sac import SAC, SACConfig, stack_batches
+from lava_bridge_mj.agents.offline import BC, IQL, BCConfig, IQLConfig
+from lava_bridge_mj.agents.sac import SAC, SACConfig
+from lava_bridge_mj.agents.seed_batch import stack_batches
 from lava_bridge_mj.agents.start_state_wrapper import StartStateWrapper
 from lava_bridge_mj.agents.start_strategies import STRATEGY_PARAMS, make_start_strategy
 from lava_bridge_mj.eval.atomic import atomic_write, atomic_write_text
@@ -58,13 +60,19 @@ METHOD_STRATEGIES = {
     "goaldist_ss": "goaldist_ss",
     "hysac": "p0",
     "hysac_auxss": "auxss",
+    "bc": "p0",
+    "iql": "p0",
 }
-"""Training methods (CLI names) and the start strategy each trains SAC with."""
+"""Training methods (CLI names) and the start strategy each trains with (offline ones never reset)."""
 HYBRID_METHODS = ("hysac", "hysac_auxss")
 """Methods whose minibatches mix demo transitions into the online ones (HyQ with SAC)."""
+OFFLINE_METHODS = ("bc", "iql")
+"""Methods that learn from the demo transitions alone; a step is one gradient update."""
+AGENT_CONFIGS = {"sac": SACConfig, "bc": BCConfig, "iql": IQLConfig}
+"""RunConfig's nested hyperparameter sections."""
 METHODS = tuple(METHOD_STRATEGIES)
 METRIC_FIELDS = ("step", "episodes", "success_p0", "success_ood", "return_p0", "return_ood",
-                 "train_return", "train_success", "q_mean", "alpha", "critic_loss", "wall_time")
+                 "train_return", "train_success", "q_mean", "alpha", "critic_loss", "actor_loss", "wall_time")
 CHECKPOINT_VERSION = 2
 CHECKPOINTS = ("checkpoint.pt", "checkpoint.prev.pt")
 RUN_FILES = ("config.json", "metrics.csv", "start_weights.npz", *CHECKPOINTS, "final.pt", "rollouts.mp4")
@@ -90,11 +98,12 @@ class RunConfig:
 
     method: str = "auxss"
     """Training method: sac (start from p0), SAC with a start strategy (auxss, omega_ss, uniform_ss,
-    goaldist_ss), or HySAC, whose minibatches mix in the demo transitions (hysac from p0, hysac_auxss)."""
+    goaldist_ss), HySAC, whose minibatches mix in the demo transitions (hysac from p0, hysac_auxss), or an
+    offline method trained on the demo transitions alone (bc, iql)."""
     seed: int = 0
     """Seeds the networks, the env, the start strategy, the replay sampling and the demo subset."""
     steps: int = 50_000
-    """Online environment steps."""
+    """Online environment steps (offline methods: gradient steps on the demo transitions)."""
     demos: int = 500
     """Which shipped demo set the candidate start states (and HySAC's offline transitions) come from (500 or 7500)."""
     demo_subset: int = 150
@@ -110,14 +119,19 @@ class RunConfig:
     strategy: dict[str, Any] = dataclasses.field(default_factory=dict)
     """Extra keyword parameters of the start strategy (e.g. {"sigma": 0.3} for auxss)."""
     sac: SACConfig = dataclasses.field(default_factory=SACConfig)
-    """SAC hyperparameters."""
+    """SAC hyperparameters (sac, the start-strategy methods, hysac, hysac_auxss)."""
+    bc: BCConfig = dataclasses.field(default_factory=BCConfig)
+    """Behaviour cloning hyperparameters (bc)."""
+    iql: IQLConfig = dataclasses.field(default_factory=IQLConfig)
+    """IQL hyperparameters (iql)."""
     env: dict[str, Any] = dataclasses.field(default_factory=dict)
     """Keyword arguments of the env, for training and evaluation alike (e.g. {"lava_reward": 0.0} or
     Layout fields such as {"bridge_width": 0.4}); the candidate states still come from the shipped demos."""
 
     def __post_init__(self) -> None:
-        if isinstance(self.sac, dict):
-            self.sac = SACConfig(**self.sac)
+        for name, section in AGENT_CONFIGS.items():
+            if isinstance(getattr(self, name), dict):
+                setattr(self, name, section(**getattr(self, name)))
         if self.method not in METHOD_STRATEGIES:
             raise ValueError(f"unknown method {self.method!r}; expected one of {METHODS}")
         for name, minimum in (("steps", 1), ("eval_every", 1), ("eval_episodes", 1), ("demo_subset", 1), ("seed", 0)):
@@ -146,10 +160,11 @@ class RunConfig:
         if not isinstance(values, dict):
             raise ValueError(f"{source} must be a JSON object of RunConfig fields, got {type(values).__name__}")
         _check_keys(values, cls, source)
-        sac = values.get("sac", {})
-        if not isinstance(sac, dict):
-            raise ValueError(f"{source}: 'sac' must be an object of SACConfig fields, got {sac!r}")
-        _check_keys(sac, SACConfig, f"{source}: 'sac'")
+        for name, section in AGENT_CONFIGS.items():
+            fields = values.get(name, {})
+            if not isinstance(fields, dict):
+                raise ValueError(f"{source}: '{name}' must be an object of {section.__name__} fields, got {fields!r}")
+            _check_keys(fields, section, f"{source}: '{name}'")
         strategy = values.get("strategy", {})
         name = METHOD_STRATEGIES.get(values.get("method", cls.method))
         if not isinstance(strategy, dict):
@@ -161,7 +176,7 @@ class RunConfig:
                              f"it accepts {accepted or 'none'}")
         try:
             return cls(**values)
-        except TypeError as error:  # e.g. a SACConfig field of the wrong type
+        except TypeError as error:  # e.g. a hyperparameter of the wrong type
             raise ValueError(f"{source}: {error}") from None
 
 
@@ -178,6 +193,17 @@ def candidate_states(config: RunConfig) -> np.ndarray:
     rng = np.random.default_rng([config.seed, 2024])  # its own stream: independent of training draws
     size = min(config.demo_subset, len(states))
     return states[np.sort(rng.choice(len(states), size=size, replace=False))]
+
+
+def agent_config(config: RunConfig) -> SACConfig | BCConfig | IQLConfig:
+    """The hyperparameter section the method trains with."""
+    return getattr(config, config.method) if config.method in OFFLINE_METHODS else config.sac
+
+
+def make_agent(config: RunConfig, seeds: Sequence[int]) -> SAC | BC | IQL:
+    """The method's learner for `seeds`, all stacked in one agent."""
+    agent_class = {"bc": BC, "iql": IQL}.get(config.method, SAC)
+    return agent_class(4, 2, agent_config(config), seeds=seeds)
 
 
 def demo_buffer(config: RunConfig) -> ReplayBuffer:
@@ -219,7 +245,7 @@ class SeedRun:
         self.strategy = make_strategy(config, self.states, probe)
         self.env = StartStateWrapper(gymnasium.make(lava_bridge_mj.ENV_ID, **config.env), self.strategy, seed=seed)
         self.buffer = ReplayBuffer(config.sac.buffer_size, 4, 2)
-        self.offline = demo_buffer(config) if config.method in HYBRID_METHODS else None
+        self.offline = demo_buffer(config) if config.method in HYBRID_METHODS + OFFLINE_METHODS else None
         self.rng = np.random.default_rng(seed)  # warm-up actions and minibatch indices
         self.episodes = 0
         self.episode_return = 0.0
@@ -242,10 +268,13 @@ class SeedRun:
             self.obs, _ = self.env.reset()
 
     def sample(self) -> dict[str, torch.Tensor]:
-        """A minibatch for this seed's update: online transitions, plus demo ones for HySAC."""
-        size = self.config.sac.batch_size
+        """A minibatch for this seed's update: online transitions, plus demo ones for HySAC; demo
+        transitions alone for the offline methods."""
+        size = agent_config(self.config).batch_size
         if self.offline is None:
             return self.buffer.sample(size, self.rng)
+        if self.config.method in OFFLINE_METHODS:
+            return self.offline.sample(size, self.rng)
         n_offline = round(self.config.hybrid_fraction * size)
         online = self.buffer.sample(size - n_offline, self.rng)
         offline = self.offline.sample(n_offline, self.rng)
@@ -261,7 +290,9 @@ class SeedRun:
             "train_return": float(np.mean(returns)) if returns else float("nan"),
             "train_success": float(np.mean([s for _, s in self.recent])) if returns else float("nan"),
             "q_mean": self.last_update.get("q_mean", float("nan")),
-            "alpha": self.last_update.get("alpha", self.config.sac.initial_alpha),
+            "alpha": self.last_update.get("alpha", self.config.sac.initial_alpha if self.config.method not in
+                                          OFFLINE_METHODS else float("nan")),
+            "actor_loss": self.last_update.get("actor_loss", float("nan")),
             "critic_loss": self.last_update.get("critic_loss", float("nan")),
             "wall_time": round(elapsed, 2),
         }
@@ -350,7 +381,7 @@ class Run:
         # evaluation resets every env with a fixed seed, so one of them can serve as the strategies' probe
         self.eval_envs = [lava_bridge_mj.LavaBridgeEnv(**self.config.env) for _ in range(self.config.eval_episodes)]
         self.seed_runs = [SeedRun(c, d, probe=self.eval_envs[0]) for c, d in zip(configs, out_dirs)]
-        self.agent = SAC(4, 2, self.config.sac, seeds=seeds)
+        self.agent = make_agent(self.config, seeds)
         self.step = 0
         self.elapsed = 0.0  # wall time of earlier sessions of this run
         self.stop_signal: int | None = None  # set by SIGINT/SIGTERM: checkpoint and stop after this step
@@ -391,20 +422,23 @@ class Run:
                 signal.signal(sig, handler)
 
     def _train(self, progress: bool) -> None:
-        config, sac, seed_runs = self.config, self.config.sac, self.seed_runs
+        config, seed_runs = self.config, self.seed_runs
+        online = config.method not in OFFLINE_METHODS
+        learning_starts = config.sac.learning_starts if online else 0
         start_time = time.perf_counter() - self.elapsed
         seeds = ", ".join(str(s) for s in self.agent.seeds)
         bar = tqdm(total=config.steps, initial=self.step, disable=not progress, unit="step",
                    desc=f"{config.method} seed{'s' if len(seed_runs) > 1 else ''} {seeds}", dynamic_ncols=True)
         while self.step < config.steps:
-            if self.step < sac.learning_starts:
-                actions = [s.rng.uniform(-1.0, 1.0, 2).astype(np.float32) for s in seed_runs]
-            else:
-                actions = self.agent.act(np.stack([s.obs for s in seed_runs]))
-            for seed_run, action in zip(seed_runs, actions):
-                seed_run.step(action)
+            if online:  # offline methods only update
+                if self.step < learning_starts:
+                    actions = [s.rng.uniform(-1.0, 1.0, 2).astype(np.float32) for s in seed_runs]
+                else:
+                    actions = self.agent.act(np.stack([s.obs for s in seed_runs]))
+                for seed_run, action in zip(seed_runs, actions):
+                    seed_run.step(action)
             self.step += 1
-            if self.step >= sac.learning_starts:
+            if self.step >= learning_starts:
                 stats = self.agent.update(stack_batches([s.sample() for s in seed_runs]))
                 for i, seed_run in enumerate(seed_runs):
                     seed_run.last_update = {name: float(values[i]) for name, values in stats.items()}

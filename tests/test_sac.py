@@ -9,7 +9,8 @@ import torch
 
 from lava_bridge_mj.agents.networks import MLP, StackedLinear, TanhGaussianActor, TwinQ, soft_update
 from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
-from lava_bridge_mj.agents.sac import SAC, SACConfig, bellman_target, stack_batches
+from lava_bridge_mj.agents.sac import SAC, SACConfig, bellman_target
+from lava_bridge_mj.agents.seed_batch import stack_batches
 
 SMALL = SACConfig(hidden_sizes=(64, 64), batch_size=64, learning_starts=400)
 

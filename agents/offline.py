@@ -1,0 +1,185 @@
+"""Offline baselines trained on the demonstration transitions only: behaviour cloning and IQL.
+
+Both train K seeds at once like SAC (stacked networks, per-seed generators and checkpoints), and
+the runner evaluates them exactly as it evaluates SAC: the deterministic policy tanh(mean) from p0
+and ood. A "step" of an offline run is one gradient update on a minibatch of demo transitions.
+
+BC: a tanh-squashed Gaussian policy fitted by maximum likelihood, -log pi(a_demo | s). Gaussian
+rather than deterministic so that the same actor class, log-density and evaluation (its mean) serve
+BC, IQL and JSRL's guide.
+
+IQL (Kostrikov, Nair and Levine, 2022, "Offline Reinforcement Learning with Implicit Q-Learning"):
+    value:  L_V = E[ |tau - 1(u < 0)| u^2 ],  u = min_i Q'_i(s, a) - V(s)        (expectile tau)
+    critic: L_Q = E[ (Q_i(s, a) - r - gamma (1 - terminated) V(s'))^2 ]  for both Q's
+    actor:  L_pi = -E[ min(exp(beta (min_i Q'_i(s, a) - V(s))), 100) log pi(a | s) ]
+with Q' the Polyak-averaged target critics, updated in the order value, actor, critic, target.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from .networks import MLP, TanhGaussianActor, TwinQ, init_member, soft_update
+from .seed_batch import SeedBatchedAgent
+
+
+def _check_positive(config, names: Sequence[str]) -> None:
+    for name in names:
+        value = getattr(config, name)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+            raise ValueError(f"{name} must be a positive number, got {value!r}")
+    sizes = config.hidden_sizes
+    if (not isinstance(sizes, (list, tuple)) or not sizes
+            or not all(isinstance(n, int) and not isinstance(n, bool) and n >= 1 for n in sizes)):
+        raise ValueError(f"hidden_sizes must be a non-empty list of positive integers, got {sizes!r}")
+    config.hidden_sizes = tuple(sizes)
+    if not isinstance(config.batch_size, int) or isinstance(config.batch_size, bool):
+        raise ValueError(f"batch_size must be a positive integer, got {config.batch_size!r}")
+
+
+@dataclass
+class BCConfig:
+    """Behaviour cloning hyperparameters (the common D4RL-style defaults)."""
+
+    hidden_sizes: tuple[int, ...] = (256, 256)
+    """Hidden layer widths of the policy."""
+    lr: float = 3e-4
+    """Adam learning rate."""
+    batch_size: int = 256
+    """Demo transitions per gradient step."""
+
+    def __post_init__(self) -> None:
+        _check_positive(self, ("lr", "batch_size"))
+
+
+@dataclass
+class IQLConfig:
+    """IQL hyperparameters: the paper's published defaults for its sparse-reward goal-reaching tasks
+    (AntMaze: expectile 0.9, temperature 10); its locomotion settings are expectile 0.7, temperature 3.
+    LavaBridge-v0 is a sparse-reward navigation task, so the AntMaze values are the default."""
+
+    hidden_sizes: tuple[int, ...] = (256, 256)
+    """Hidden layer widths of the policy, the value network and each critic."""
+    lr: float = 3e-4
+    """Adam learning rate of every network."""
+    batch_size: int = 256
+    """Demo transitions per gradient step."""
+    gamma: float = 0.99
+    """Discount factor."""
+    tau: float = 0.005
+    """Polyak rate of the target critics."""
+    expectile: float = 0.9
+    """tau of the expectile value loss: how close V(s) gets to the best in-data action's Q."""
+    temperature: float = 10.0
+    """beta of the advantage weights exp(beta A)."""
+    max_weight: float = 100.0
+    """Advantage weights are clipped at this value (the paper's 100)."""
+
+    def __post_init__(self) -> None:
+        _check_positive(self, ("lr", "batch_size", "temperature", "max_weight"))
+        for name, high in (("gamma", 1.0), ("tau", 1.0), ("expectile", 1.0 - 1e-9)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= high:
+                raise ValueError(f"{name} must be a number in (0, 1{')' if name == 'expectile' else ']'}, got {value!r}")
+
+
+def expectile_loss(diff: torch.Tensor, expectile: float) -> torch.Tensor:
+    """|expectile - 1(diff < 0)| diff^2, elementwise: squares weighted asymmetrically, so that V moves
+    towards an upper expectile of Q (expectile 0.5 weighs both sides alike: half the squared error)."""
+    weight = torch.where(diff < 0, 1.0 - expectile, expectile)
+    return weight * diff**2
+
+
+class BC(SeedBatchedAgent):
+    """Behaviour cloning for K seeds: maximise log pi(a_demo | s)."""
+
+    def __init__(self, obs_dim: int, act_dim: int, config: BCConfig | None = None, seeds: Sequence[int] = (0,)):
+        self.config = config = config or BCConfig()
+        self.obs_dim, self.seeds = obs_dim, tuple(int(s) for s in seeds)
+        self.actor = TanhGaussianActor(len(self.seeds), obs_dim, act_dim, config.hidden_sizes)
+        for i, seed in enumerate(self.seeds):
+            init_member(self.actor, i, torch.Generator().manual_seed(seed))
+        self.generators = [torch.Generator().manual_seed(seed) for seed in self.seeds]
+        self.optimizer = torch.optim.Adam(self.actor.parameters(), lr=config.lr, foreach=True)
+
+    def update(self, batch: dict[str, torch.Tensor]) -> dict[str, np.ndarray]:
+        loss = -self.actor.log_prob(batch["obs"], batch["action"]).mean(1)
+        self.optimizer.zero_grad(set_to_none=True)
+        loss.sum().backward()
+        self.optimizer.step()
+        return {"actor_loss": loss.detach().numpy()}
+
+    def _parts(self) -> dict:
+        return {"actor": self.actor, "optimizer": self.optimizer}
+
+
+class IQL(SeedBatchedAgent):
+    """Implicit Q-learning for K seeds (see the module docstring for the losses)."""
+
+    def __init__(self, obs_dim: int, act_dim: int, config: IQLConfig | None = None, seeds: Sequence[int] = (0,)):
+        self.config = config = config or IQLConfig()
+        self.obs_dim, self.seeds = obs_dim, tuple(int(s) for s in seeds)
+        k = len(self.seeds)
+        self.actor = TanhGaussianActor(k, obs_dim, act_dim, config.hidden_sizes)
+        self.critic = TwinQ(k, obs_dim, act_dim, config.hidden_sizes)
+        self.value = MLP(k, obs_dim, 1, config.hidden_sizes)
+        for i, seed in enumerate(self.seeds):
+            init = torch.Generator().manual_seed(seed)
+            for net in (self.actor, self.critic, self.value):
+                init_member(net, i, init)
+        self.target_critic = copy.deepcopy(self.critic).requires_grad_(False)
+        self.generators = [torch.Generator().manual_seed(seed) for seed in self.seeds]
+        self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=config.lr, foreach=True)
+        self.critic_optimizer = torch.optim.Adam(self.critic.parameters(), lr=config.lr, foreach=True)
+        self.value_optimizer = torch.optim.Adam(self.value.parameters(), lr=config.lr, foreach=True)
+
+    def update(self, batch: dict[str, torch.Tensor]) -> dict[str, np.ndarray]:
+        config = self.config
+        obs, action = batch["obs"], batch["action"]
+        with torch.no_grad():
+            target_q = self.target_critic(obs, action)
+
+        # Value: an upper expectile of the target Q over the data's actions.
+        value = self.value(obs).squeeze(-1)
+        value_loss = expectile_loss(target_q - value, config.expectile).mean(1)
+        self.value_optimizer.zero_grad(set_to_none=True)
+        value_loss.sum().backward()
+        self.value_optimizer.step()
+
+        # Actor: advantage-weighted regression onto the data's actions.
+        with torch.no_grad():
+            advantage = target_q - self.value(obs).squeeze(-1)
+            weight = torch.exp(config.temperature * advantage).clamp(max=config.max_weight)
+        actor_loss = -(weight * self.actor.log_prob(obs, action)).mean(1)
+        self.actor_optimizer.zero_grad(set_to_none=True)
+        actor_loss.sum().backward()
+        self.actor_optimizer.step()
+
+        # Critics: one-step targets through V(s'), never through an action outside the data.
+        with torch.no_grad():
+            next_value = self.value(batch["next_obs"]).squeeze(-1)
+            target = batch["reward"] + config.gamma * (1.0 - batch["terminated"]) * next_value
+        q1, q2 = self.critic.both(obs, action)
+        critic_loss = ((q1 - target) ** 2).mean(1) + ((q2 - target) ** 2).mean(1)
+        self.critic_optimizer.zero_grad(set_to_none=True)
+        critic_loss.sum().backward()
+        self.critic_optimizer.step()
+
+        soft_update(self.target_critic, self.critic, config.tau)
+        stats = torch.stack([critic_loss.detach(), value_loss.detach(), actor_loss.detach(),
+                             0.5 * (q1.detach().mean(1) + q2.detach().mean(1))]).numpy()
+        return dict(zip(("critic_loss", "value_loss", "actor_loss", "q_mean"), stats))
+
+    def _parts(self) -> dict:
+        return {
+            "actor": self.actor, "critic": self.critic, "target_critic": self.target_critic, "value": self.value,
+            "actor_optimizer": self.actor_optimizer, "critic_optimizer": self.critic_optimizer,
+            "value_optimizer": self.value_optimizer,
+        }
+
+

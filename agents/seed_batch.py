@@ -1,0 +1,104 @@
+"""What every agent that trains K seeds at once shares: per-seed checkpoints and acting.
+
+An agent's networks, optimiser moments and scalars carry a leading seed axis (agents/networks.py).
+`seed_state(i)` cuts seed i's slice out of all of them, so a checkpoint holds one seed and a run can
+be resumed alone or in any batch; `load_seed_states` stacks such slices back together.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+
+class SeedBatchedAgent:
+    """Base of SAC, BC and IQL. Subclasses set `seeds`, `generators` (one torch.Generator per seed),
+    `actor` (a TanhGaussianActor), `obs_dim`, and list their checkpointed parts in `_parts()`."""
+
+    seeds: tuple[int, ...]
+    generators: list[torch.Generator]
+    actor: nn.Module
+    obs_dim: int
+
+    def _parts(self) -> dict[str, nn.Module | torch.optim.Optimizer | torch.Tensor]:
+        raise NotImplementedError
+
+    @property
+    def num_seeds(self) -> int:
+        return len(self.seeds)
+
+    @torch.no_grad()
+    def act(self, obs: np.ndarray, deterministic: bool = False) -> np.ndarray:
+        """Actions in [-1, 1] for observations (K, obs_dim) or (K, n, obs_dim), seed i acting on obs[i]."""
+        obs_t = torch.as_tensor(obs, dtype=torch.float32)
+        single = obs_t.dim() == 2
+        if obs_t.dim() not in (2, 3) or obs_t.shape[0] != self.num_seeds:
+            raise ValueError(f"expected observations of shape ({self.num_seeds}, [n,] {self.obs_dim}), "
+                             f"got {tuple(obs_t.shape)}")
+        action, _ = self.actor(obs_t.unsqueeze(1) if single else obs_t, deterministic=deterministic,
+                               generators=self.generators)
+        return (action.squeeze(1) if single else action).numpy()
+
+    def seed_state(self, i: int) -> dict[str, Any]:
+        """Everything seed i needs to continue bit-identically (its data buffers are separate): its
+        slice of every network, optimiser moment and scalar, with the seed axis kept (length 1)."""
+        state = {name: _map_seed_axis(_state_of(part), lambda t: t[i:i + 1].clone())
+                 for name, part in self._parts().items()}
+        state.update(seed=self.seeds[i], generator=self.generators[i].get_state())
+        return state
+
+    def load_seed_states(self, states: Sequence[dict[str, Any]]) -> None:
+        """Restore every seed from `seed_state` dicts, one per seed in order (possibly from different
+        runs' checkpoints); they must come from the same seeds and share optimiser step counts."""
+        if [s["seed"] for s in states] != list(self.seeds):
+            raise ValueError(f"states of seeds {[s['seed'] for s in states]} cannot load into seeds {list(self.seeds)}")
+        for name, part in self._parts().items():
+            merged = _concat_seed_axis([s[name] for s in states])
+            if isinstance(part, torch.Tensor):
+                with torch.no_grad():
+                    part.copy_(merged)  # in place: an optimiser may hold this tensor
+            else:
+                part.load_state_dict(merged)
+        for generator, state in zip(self.generators, states):
+            generator.set_state(state["generator"])
+
+
+def _state_of(part: nn.Module | torch.optim.Optimizer | torch.Tensor) -> Any:
+    return part.detach() if isinstance(part, torch.Tensor) else part.state_dict()
+
+
+def _map_seed_axis(tree: Any, fn) -> Any:
+    """Apply fn to every tensor with a seed axis (dim >= 1) in a nested dict/list; scalars such as
+    Adam's step count and non-tensors are shared by all seeds and kept."""
+    if isinstance(tree, dict):
+        return {key: _map_seed_axis(value, fn) for key, value in tree.items()}
+    if isinstance(tree, list):
+        return [_map_seed_axis(value, fn) for value in tree]
+    if isinstance(tree, torch.Tensor) and tree.dim() >= 1:
+        return fn(tree)
+    return tree
+
+
+def _concat_seed_axis(trees: Sequence[Any]) -> Any:
+    """Inverse of slicing with `_map_seed_axis`: concatenate per-seed tensors along the seed axis;
+    shared values (Adam's step count, hyperparameters) must agree across the trees."""
+    first = trees[0]
+    if isinstance(first, dict):
+        return {key: _concat_seed_axis([t[key] for t in trees]) for key in first}
+    if isinstance(first, list):
+        return [_concat_seed_axis([t[i] for t in trees]) for i in range(len(first))]
+    if isinstance(first, torch.Tensor) and first.dim() >= 1:
+        return torch.cat(trees)
+    if any(not (torch.equal(t, first) if isinstance(t, torch.Tensor) else t == first) for t in trees[1:]):
+        raise ValueError("seed states disagree on a shared value (e.g. optimiser step counts): "
+                         "only checkpoints taken at the same step can train in one batch")
+    return first
+
+
+def stack_batches(batches: Sequence[dict[str, torch.Tensor]]) -> dict[str, torch.Tensor]:
+    """One (K, B, ...) batch from K per-seed replay samples."""
+    return {name: torch.stack([b[name] for b in batches]) for name in batches[0]}
