@@ -67,7 +67,9 @@ def build_parser() -> argparse.ArgumentParser:
                              "safety; omega_ss: random-policy Monte-Carlo safety; uniform_ss: uniform "
                              "over demo states; goaldist_ss: goal-distance weighted, flattening over time; "
                              "hysac: SAC from p0 whose minibatches are half demo transitions (HyQ); "
-                             "hysac_auxss: both HySAC's replay and AuxSS's start states; offline, "
+                             "hysac_auxss: both HySAC's replay and AuxSS's start states; jsrl: a guide "
+                             "learned from the demos (IQL by default) acts first in each episode, for a "
+                             "horizon that shrinks as the learner succeeds; offline, "
                              "--steps counting gradient steps on the demos: bc (behaviour cloning), iql")
     seeds = parser.add_mutually_exclusive_group()
     seeds.add_argument("--seed", type=_seed, help=f"random seed of the run (default: {DEFAULTS.seed})")

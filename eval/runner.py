@@ -44,6 +44,7 @@ from tqdm.auto import tqdm
 
 import lava_bridge_mj
 from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
+from lava_bridge_mj.agents.jsrl import JSRLConfig, JSRLCurriculum
 from lava_bridge_mj.agents.offline import BC, IQL, BCConfig, IQLConfig
 from lava_bridge_mj.agents.sac import SAC, SACConfig
 from lava_bridge_mj.agents.seed_batch import stack_batches
@@ -60,6 +61,7 @@ METHOD_STRATEGIES = {
     "goaldist_ss": "goaldist_ss",
     "hysac": "p0",
     "hysac_auxss": "auxss",
+    "jsrl": "p0",
     "bc": "p0",
     "iql": "p0",
 }
@@ -68,11 +70,12 @@ HYBRID_METHODS = ("hysac", "hysac_auxss")
 """Methods whose minibatches mix demo transitions into the online ones (HyQ with SAC)."""
 OFFLINE_METHODS = ("bc", "iql")
 """Methods that learn from the demo transitions alone; a step is one gradient update."""
-AGENT_CONFIGS = {"sac": SACConfig, "bc": BCConfig, "iql": IQLConfig}
+AGENT_CONFIGS = {"sac": SACConfig, "bc": BCConfig, "iql": IQLConfig, "jsrl": JSRLConfig}
 """RunConfig's nested hyperparameter sections."""
 METHODS = tuple(METHOD_STRATEGIES)
 METRIC_FIELDS = ("step", "episodes", "success_p0", "success_ood", "return_p0", "return_ood",
-                 "train_return", "train_success", "q_mean", "alpha", "critic_loss", "actor_loss", "wall_time")
+                 "train_return", "train_success", "q_mean", "alpha", "critic_loss", "actor_loss", "guide_horizon",
+                 "wall_time")
 CHECKPOINT_VERSION = 2
 CHECKPOINTS = ("checkpoint.pt", "checkpoint.prev.pt")
 RUN_FILES = ("config.json", "metrics.csv", "start_weights.npz", *CHECKPOINTS, "final.pt", "rollouts.mp4")
@@ -98,8 +101,9 @@ class RunConfig:
 
     method: str = "auxss"
     """Training method: sac (start from p0), SAC with a start strategy (auxss, omega_ss, uniform_ss,
-    goaldist_ss), HySAC, whose minibatches mix in the demo transitions (hysac from p0, hysac_auxss), or an
-    offline method trained on the demo transitions alone (bc, iql)."""
+    goaldist_ss), HySAC, whose minibatches mix in the demo transitions (hysac from p0, hysac_auxss), JSRL
+    (a guide learned from the demos acts first in each episode), or an offline method trained on the demo
+    transitions alone (bc, iql)."""
     seed: int = 0
     """Seeds the networks, the env, the start strategy, the replay sampling and the demo subset."""
     steps: int = 50_000
@@ -123,7 +127,9 @@ class RunConfig:
     bc: BCConfig = dataclasses.field(default_factory=BCConfig)
     """Behaviour cloning hyperparameters (bc)."""
     iql: IQLConfig = dataclasses.field(default_factory=IQLConfig)
-    """IQL hyperparameters (iql)."""
+    """IQL hyperparameters (iql, and jsrl's guide when it is IQL)."""
+    jsrl: JSRLConfig = dataclasses.field(default_factory=JSRLConfig)
+    """JSRL's guide and curriculum (jsrl); its learner uses `sac`."""
     env: dict[str, Any] = dataclasses.field(default_factory=dict)
     """Keyword arguments of the env, for training and evaluation alike (e.g. {"lava_reward": 0.0} or
     Layout fields such as {"bridge_width": 0.4}); the candidate states still come from the shipped demos."""
@@ -245,7 +251,8 @@ class SeedRun:
         self.strategy = make_strategy(config, self.states, probe)
         self.env = StartStateWrapper(gymnasium.make(lava_bridge_mj.ENV_ID, **config.env), self.strategy, seed=seed)
         self.buffer = ReplayBuffer(config.sac.buffer_size, 4, 2)
-        self.offline = demo_buffer(config) if config.method in HYBRID_METHODS + OFFLINE_METHODS else None
+        self.offline = demo_buffer(config) if config.method in (*HYBRID_METHODS, *OFFLINE_METHODS, "jsrl") else None
+        self.curriculum = JSRLCurriculum(config.jsrl) if config.method == "jsrl" else None
         self.rng = np.random.default_rng(seed)  # warm-up actions and minibatch indices
         self.episodes = 0
         self.episode_return = 0.0
@@ -264,6 +271,8 @@ class SeedRun:
         if terminated or truncated:
             self.episodes += 1
             self.recent.append((self.episode_return, bool(info["is_success"])))
+            if self.curriculum is not None:
+                self.curriculum.record(info["is_success"])
             self.episode_return = 0.0
             self.obs, _ = self.env.reset()
 
@@ -271,10 +280,10 @@ class SeedRun:
         """A minibatch for this seed's update: online transitions, plus demo ones for HySAC; demo
         transitions alone for the offline methods."""
         size = agent_config(self.config).batch_size
-        if self.offline is None:
-            return self.buffer.sample(size, self.rng)
         if self.config.method in OFFLINE_METHODS:
             return self.offline.sample(size, self.rng)
+        if self.config.method not in HYBRID_METHODS:
+            return self.buffer.sample(size, self.rng)
         n_offline = round(self.config.hybrid_fraction * size)
         online = self.buffer.sample(size - n_offline, self.rng)
         offline = self.offline.sample(n_offline, self.rng)
@@ -293,6 +302,7 @@ class SeedRun:
             "alpha": self.last_update.get("alpha", self.config.sac.initial_alpha if self.config.method not in
                                           OFFLINE_METHODS else float("nan")),
             "actor_loss": self.last_update.get("actor_loss", float("nan")),
+            "guide_horizon": self.curriculum.horizon if self.curriculum is not None else float("nan"),
             "critic_loss": self.last_update.get("critic_loss", float("nan")),
             "wall_time": round(elapsed, 2),
         }
@@ -333,6 +343,7 @@ class SeedRun:
             "physics": base.get_state(),
             "elapsed_steps": self.env.get_wrapper_attr("_elapsed_steps"),  # gymnasium's TimeLimit count
             "obs": self.obs, "episode_return": self.episode_return,
+            "curriculum": self.curriculum.state_dict() if self.curriculum is not None else None,
         }
 
     def save(self, state: dict, name: str = "checkpoint.pt") -> None:
@@ -358,6 +369,8 @@ class SeedRun:
         self.rng.bit_generator.state = state["rng"]
         base.np_random.bit_generator.state = state["env_rng"]
         self.obs, self.episode_return = state["obs"], state["episode_return"]
+        if self.curriculum is not None:
+            self.curriculum.load_state_dict(state["curriculum"])
         self.write_results()  # drop rows written after the checkpoint, so the files agree with it
 
 
@@ -382,6 +395,10 @@ class Run:
         self.eval_envs = [lava_bridge_mj.LavaBridgeEnv(**self.config.env) for _ in range(self.config.eval_episodes)]
         self.seed_runs = [SeedRun(c, d, probe=self.eval_envs[0]) for c, d in zip(configs, out_dirs)]
         self.agent = make_agent(self.config, seeds)
+        # JSRL's guide: an offline learner trained on the demos before the first online step
+        self.guide = make_agent(dataclasses.replace(self.config, method=self.config.jsrl.guide), seeds) \
+            if self.config.method == "jsrl" else None
+        self.guide_trained = False
         self.step = 0
         self.elapsed = 0.0  # wall time of earlier sessions of this run
         self.stop_signal: int | None = None  # set by SIGINT/SIGTERM: checkpoint and stop after this step
@@ -426,6 +443,10 @@ class Run:
         online = config.method not in OFFLINE_METHODS
         learning_starts = config.sac.learning_starts if online else 0
         start_time = time.perf_counter() - self.elapsed
+        if self.guide is not None and not self.guide_trained:
+            self._train_guide()
+            self.elapsed = time.perf_counter() - start_time
+            self.save()  # the guide's training is not repeated by a resume
         seeds = ", ".join(str(s) for s in self.agent.seeds)
         bar = tqdm(total=config.steps, initial=self.step, disable=not progress, unit="step",
                    desc=f"{config.method} seed{'s' if len(seed_runs) > 1 else ''} {seeds}", dynamic_ncols=True)
@@ -435,6 +456,11 @@ class Run:
                     actions = [s.rng.uniform(-1.0, 1.0, 2).astype(np.float32) for s in seed_runs]
                 else:
                     actions = self.agent.act(np.stack([s.obs for s in seed_runs]))
+                if self.guide is not None:  # JSRL: the guide acts for the first h steps of each episode
+                    guided = [s.env.episode_length < s.curriculum.horizon for s in seed_runs]
+                    if any(guided):
+                        guide_actions = self.guide.act(np.stack([s.obs for s in seed_runs]), deterministic=True)
+                        actions = [g if use else a for use, g, a in zip(guided, guide_actions, actions)]
                 for seed_run, action in zip(seed_runs, actions):
                     seed_run.step(action)
             self.step += 1
@@ -461,6 +487,15 @@ class Run:
         self.elapsed = time.perf_counter() - start_time
         self.save("final.pt")
 
+    def _train_guide(self) -> None:
+        """JSRL: fit the guide (BC or IQL) to the demo transitions, each seed with its own sampling stream."""
+        config = self.config
+        size = getattr(config, config.jsrl.guide).batch_size
+        rngs = [np.random.default_rng([s.config.seed, 17]) for s in self.seed_runs]
+        for _ in range(config.jsrl.guide_steps):
+            self.guide.update(stack_batches([s.offline.sample(size, rng) for s, rng in zip(self.seed_runs, rngs)]))
+        self.guide_trained = True
+
     def evaluate(self) -> list[dict[str, float]]:
         """Each seed's deterministic policy on the fixed p0 and ood episodes; rows written to each run."""
         rows = []
@@ -483,7 +518,10 @@ class Run:
     # --- checkpoints ----------------------------------------------------------------------------
     def save(self, name: str = "checkpoint.pt") -> None:
         for i, seed_run in enumerate(self.seed_runs):
-            seed_run.save(seed_run.state(self.step, self.elapsed, self.agent.seed_state(i)), name)
+            state = seed_run.state(self.step, self.elapsed, self.agent.seed_state(i))
+            if self.guide is not None:
+                state.update(guide=self.guide.seed_state(i), guide_trained=self.guide_trained)
+            seed_run.save(state, name)
 
     def resume(self) -> None:
         """Continue from the newest checkpoint step that every seed has (see the module docstring);
@@ -505,6 +543,9 @@ class Run:
         states = [found[self.step] for found in available]
         self.elapsed = max(state["elapsed"] for state in states)
         self.agent.load_seed_states([state["agent"] for state in states])
+        if self.guide is not None:
+            self.guide.load_seed_states([state["guide"] for state in states])
+            self.guide_trained = all(state["guide_trained"] for state in states)
         for seed_run, state in zip(self.seed_runs, states):
             seed_run.load(state)
 

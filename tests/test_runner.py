@@ -19,7 +19,9 @@ TINY_SAC = SACConfig(hidden_sizes=(16, 16), batch_size=32, buffer_size=500, lear
 
 
 def tiny_config(method="auxss", **overrides):
-    values = dict(method=method, seed=3, steps=700, eval_every=100, eval_episodes=2, demo_subset=20, sac=TINY_SAC)
+    values = dict(method=method, seed=3, steps=700, eval_every=100, eval_episodes=2, demo_subset=20, sac=TINY_SAC,
+                  bc={"hidden_sizes": [16, 16], "batch_size": 32}, iql={"hidden_sizes": [16, 16], "batch_size": 32},
+                  jsrl={"guide": "iql", "guide_steps": 50, "initial_horizon": 40})
     values.update(overrides)
     return RunConfig(**values)
 
