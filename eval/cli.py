@@ -57,9 +57,10 @@ def parse_seeds(text: str) -> list[int]:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="lava-bridge-bench",
-        description="Train SAC on LavaBridge-v0 from a start-state distribution, evaluating the "
-                    "deterministic policy's success rate from p0 (the MDP's starts) and ood "
-                    "(unseen starts) as it learns. Writes a run directory with config.json, "
+        description="Train a method on LavaBridge-v0 (SAC from a start-state distribution, a hybrid "
+                    "or an offline baseline), evaluating the deterministic policy's success rate from "
+                    "p0 (the MDP's starts) and ood (unseen starts) as it learns. Writes a run "
+                    "directory with config.json, "
                     "metrics.csv, start_weights.npz, checkpoints and policy snapshots. "
                     "Ctrl-C (or SIGTERM) stops after writing a checkpoint; --resume continues.")
     parser.add_argument("--method", required=True, choices=METHODS,
