@@ -1,0 +1,77 @@
+"""Summarise run directories as a Markdown table: one row per seed, then the batch.
+
+    python -m lava_bridge_mj.eval.summary runs/calib/auxss_lava0 [more directories ...]
+
+Each directory is a run directory (holding metrics.csv) or holds run directories one level down (a
+--seeds batch). Per seed: the first evaluation step with success from p0 >= the threshold (0.8, the
+paper's steps-to-threshold), the best p0 success and its step, and p0 / ood success at the last
+evaluation. Per batch: how many seeds reached the threshold, and the means of the last evaluation.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+from pathlib import Path
+
+THRESHOLD = 0.8
+
+
+def read_metrics(run_dir: Path) -> list[dict[str, float]]:
+    with open(run_dir / "metrics.csv") as f:
+        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+
+
+def run_dirs(path: Path) -> list[Path]:
+    """`path` itself if it is a run directory, else its run subdirectories in seed order."""
+    if (path / "metrics.csv").exists():
+        return [path]
+    found = [d for d in path.iterdir() if (d / "metrics.csv").exists()]
+    if not found:
+        raise ValueError(f"{path} holds no metrics.csv, directly or one level down")
+    return sorted(found, key=lambda d: (len(d.name), d.name))
+
+
+def seed_summary(rows: list[dict[str, float]], threshold: float = THRESHOLD) -> dict[str, float]:
+    reached = [r["step"] for r in rows if r["success_p0"] >= threshold]
+    best = max(rows, key=lambda r: (r["success_p0"], -r["step"]))
+    return {"steps_to_threshold": reached[0] if reached else math.nan,
+            "best_p0": best["success_p0"], "best_step": best["step"],
+            "last_step": rows[-1]["step"], "last_p0": rows[-1]["success_p0"], "last_ood": rows[-1]["success_ood"]}
+
+
+def markdown(path: Path, threshold: float = THRESHOLD) -> str:
+    lines = [f"`{path}`", "",
+             f"| run | first step p0 >= {threshold:g} | best p0 (step) | p0 / ood at the last evaluation |",
+             "|---|---:|---:|---:|"]
+    summaries = []
+    for run in run_dirs(path):
+        s = seed_summary(read_metrics(run), threshold)
+        summaries.append(s)
+        first = "never" if math.isnan(s["steps_to_threshold"]) else f"{s['steps_to_threshold']:,.0f}"
+        lines.append(f"| {run.name} | {first} | {s['best_p0']:.2f} ({s['best_step']:,.0f}) | "
+                     f"{s['last_p0']:.2f} / {s['last_ood']:.2f} (at {s['last_step']:,.0f}) |")
+    solved = sum(not math.isnan(s["steps_to_threshold"]) for s in summaries)
+    mean = lambda key: sum(s[key] for s in summaries) / len(summaries)  # noqa: E731
+    lines.append(f"| **all {len(summaries)}** | {solved} of {len(summaries)} reached it | "
+                 f"mean {mean('best_p0'):.2f} | mean {mean('last_p0'):.2f} / {mean('last_ood'):.2f} |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("dirs", nargs="+", type=Path, help="run directories or directories of them")
+    parser.add_argument("--threshold", type=float, default=THRESHOLD, help="p0 success that counts as solved")
+    args = parser.parse_args(argv)
+    for path in args.dirs:
+        if not path.is_dir():
+            parser.error(f"{path} is not a directory")
+        try:
+            print(markdown(path, args.threshold), end="\n\n")
+        except ValueError as error:
+            parser.error(str(error))
+
+
+if __name__ == "__main__":
+    main()
