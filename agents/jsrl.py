@@ -17,6 +17,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from .checks import check_integer, check_number
+
 
 @dataclass
 class JSRLConfig:
@@ -39,12 +41,11 @@ class JSRLConfig:
     def __post_init__(self) -> None:
         if self.guide not in ("iql", "bc"):
             raise ValueError(f"guide must be 'iql' or 'bc', got {self.guide!r}")
-        for name, minimum in (("guide_steps", 0), ("initial_horizon", 0), ("stages", 1), ("window", 1)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-                raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
-        if isinstance(self.threshold, bool) or not isinstance(self.threshold, (int, float)) or not 0 <= self.threshold <= 1:
-            raise ValueError(f"threshold must be a number in [0, 1], got {self.threshold!r}")
+        check_integer("guide_steps", self.guide_steps, 0)
+        check_integer("initial_horizon", self.initial_horizon, 0)
+        check_integer("stages", self.stages, 1)
+        check_integer("window", self.window, 1)
+        check_number("threshold", self.threshold, 0, 1, low_inclusive=True)
 
 
 class JSRLCurriculum:

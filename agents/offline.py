@@ -24,22 +24,9 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from .checks import check_hidden_sizes, check_integer, check_number
 from .networks import MLP, TanhGaussianActor, TwinQ, init_member, soft_update
 from .seed_batch import SeedBatchedAgent
-
-
-def _check_positive(config, names: Sequence[str]) -> None:
-    for name in names:
-        value = getattr(config, name)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
-            raise ValueError(f"{name} must be a positive number, got {value!r}")
-    sizes = config.hidden_sizes
-    if (not isinstance(sizes, (list, tuple)) or not sizes
-            or not all(isinstance(n, int) and not isinstance(n, bool) and n >= 1 for n in sizes)):
-        raise ValueError(f"hidden_sizes must be a non-empty list of positive integers, got {sizes!r}")
-    config.hidden_sizes = tuple(sizes)
-    if not isinstance(config.batch_size, int) or isinstance(config.batch_size, bool):
-        raise ValueError(f"batch_size must be a positive integer, got {config.batch_size!r}")
 
 
 @dataclass
@@ -54,7 +41,9 @@ class BCConfig:
     """Demo transitions per gradient step."""
 
     def __post_init__(self) -> None:
-        _check_positive(self, ("lr", "batch_size"))
+        self.hidden_sizes = check_hidden_sizes(self.hidden_sizes)
+        check_number("lr", self.lr)
+        check_integer("batch_size", self.batch_size, 1)
 
 
 @dataclass
@@ -81,11 +70,14 @@ class IQLConfig:
     """Advantage weights are clipped at this value (the paper's 100)."""
 
     def __post_init__(self) -> None:
-        _check_positive(self, ("lr", "batch_size", "temperature", "max_weight"))
-        for name, high in (("gamma", 1.0), ("tau", 1.0), ("expectile", 1.0 - 1e-9)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= high:
-                raise ValueError(f"{name} must be a number in (0, 1{')' if name == 'expectile' else ']'}, got {value!r}")
+        self.hidden_sizes = check_hidden_sizes(self.hidden_sizes)
+        check_number("lr", self.lr)
+        check_integer("batch_size", self.batch_size, 1)
+        check_number("gamma", self.gamma, 0, 1)
+        check_number("tau", self.tau, 0, 1)
+        check_number("expectile", self.expectile, 0, 1, high_inclusive=False)
+        check_number("temperature", self.temperature)
+        check_number("max_weight", self.max_weight)
 
 
 def expectile_loss(diff: torch.Tensor, expectile: float) -> torch.Tensor:

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from .checks import check_hidden_sizes, check_integer, check_number
 from .networks import TanhGaussianActor, TwinQ, init_member, soft_update
 from .seed_batch import SeedBatchedAgent
 
@@ -57,20 +58,14 @@ class SACConfig:
     """Entropy the automatic tuning of alpha aims at; None means -act_dim (the SAC paper's heuristic)."""
 
     def __post_init__(self) -> None:
-        sizes = self.hidden_sizes
-        if (not isinstance(sizes, (list, tuple)) or not sizes
-                or not all(isinstance(n, int) and not isinstance(n, bool) and n >= 1 for n in sizes)):
-            raise ValueError(f"hidden_sizes must be a non-empty list of positive integers, got {sizes!r}")
-        self.hidden_sizes = tuple(sizes)
-        for name, low, high in (("lr", 0, math.inf), ("gamma", 0, 1), ("tau", 0, 1), ("initial_alpha", 0, math.inf)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not low < value <= high:
-                raise ValueError(f"{name} must be a number in ({low}, {high}], got {value!r}")
-        for name in ("batch_size", "buffer_size", "learning_starts"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < (0 if name == "learning_starts" else 1):
-                raise ValueError(f"{name} must be a {'non-negative' if name == 'learning_starts' else 'positive'} "
-                                 f"integer, got {value!r}")
+        self.hidden_sizes = check_hidden_sizes(self.hidden_sizes)
+        check_number("lr", self.lr)
+        check_number("gamma", self.gamma, 0, 1)
+        check_number("tau", self.tau, 0, 1)
+        check_number("initial_alpha", self.initial_alpha)
+        check_integer("batch_size", self.batch_size, 1)
+        check_integer("buffer_size", self.buffer_size, 1)
+        check_integer("learning_starts", self.learning_starts, 0)
 
 
 def bellman_target(reward: torch.Tensor, terminated: torch.Tensor, next_value: torch.Tensor,

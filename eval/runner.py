@@ -44,6 +44,7 @@ from tqdm.auto import tqdm
 
 import lava_bridge_mj
 from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
+from lava_bridge_mj.agents.checks import check_integer, check_number
 from lava_bridge_mj.agents.jsrl import JSRLConfig, JSRLCurriculum
 from lava_bridge_mj.agents.offline import BC, IQL, BCConfig, IQLConfig
 from lava_bridge_mj.agents.sac import SAC, SACConfig
@@ -141,12 +142,8 @@ class RunConfig:
         if self.method not in METHOD_STRATEGIES:
             raise ValueError(f"unknown method {self.method!r}; expected one of {METHODS}")
         for name, minimum in (("steps", 1), ("eval_every", 1), ("eval_episodes", 1), ("demo_subset", 1), ("seed", 0)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not (isinstance(value, int) and value >= minimum):
-                raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
-        fraction = self.hybrid_fraction
-        if isinstance(fraction, bool) or not isinstance(fraction, (int, float)) or not 0.0 <= fraction <= 1.0:
-            raise ValueError(f"hybrid_fraction must be a number in [0, 1], got {fraction!r}")
+            check_integer(name, getattr(self, name), minimum)
+        check_number("hybrid_fraction", self.hybrid_fraction, 0, 1, low_inclusive=True)
         if self.demos not in (500, 7500):
             raise ValueError(f"demos must be 500 or 7500, got {self.demos!r}")
         if not isinstance(self.env, dict):

@@ -1,10 +1,8 @@
 """JSRL: the curriculum's horizons and advancement, the hand-over at step h, and a resumable run."""
 
-import csv
-import shutil
-
 import numpy as np
 import pytest
+from conftest import interrupted_copy, metrics_without_wall_time
 
 from lava_bridge_mj.agents.jsrl import JSRLConfig, JSRLCurriculum
 from lava_bridge_mj.eval.runner import Run, RunConfig, train
@@ -75,16 +73,10 @@ def test_the_guide_acts_for_exactly_h_steps_then_the_learner(tmp_path, monkeypat
 def test_a_jsrl_run_advances_its_horizon_and_resumes_exactly(tmp_path):
     config = RunConfig(**TINY)
     train(config, tmp_path / "full", progress=False)
-    with open(tmp_path / "full/metrics.csv") as f:
-        rows = list(csv.DictReader(f))
+    rows = metrics_without_wall_time(tmp_path / "full")
     horizons = [float(r["guide_horizon"]) for r in rows]
     assert horizons[0] <= 30 and horizons[-1] < 30 and horizons == sorted(horizons, reverse=True), horizons
 
-    resumed = tmp_path / "resumed"
-    resumed.mkdir()
-    for name in ("config.json", "metrics.csv"):
-        shutil.copy(tmp_path / "full" / name, resumed / name)
-    shutil.copy(tmp_path / "full/checkpoint.prev.pt", resumed / "checkpoint.pt")
-    train(config, resumed, resume=True, progress=False)
-    read = lambda d: [{k: v for k, v in r.items() if k != "wall_time"} for r in csv.DictReader(open(d / "metrics.csv"))]  # noqa: E731
-    assert read(resumed) == read(tmp_path / "full")
+    interrupted_copy(tmp_path / "full", tmp_path / "resumed")
+    train(config, tmp_path / "resumed", resume=True, progress=False)
+    assert metrics_without_wall_time(tmp_path / "resumed") == metrics_without_wall_time(tmp_path / "full")

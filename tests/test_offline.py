@@ -1,8 +1,5 @@
 """BC and IQL: losses against hand-computed values, learning the demos, and runs through the runner."""
 
-import csv
-import shutil
-
 import numpy as np
 import pytest
 import torch
@@ -13,12 +10,9 @@ from lava_bridge_mj.agents.seed_batch import stack_batches
 from lava_bridge_mj.eval.runner import RunConfig, demo_buffer, train
 
 
-@pytest.fixture(autouse=True)
-def one_torch_thread():
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+from conftest import interrupted_copy, metrics_without_wall_time
+
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def test_expectile_loss_by_hand():
@@ -77,15 +71,6 @@ def test_offline_runs_never_step_the_env_and_resume_exactly(tmp_path, method):
     assert len(full.seed_runs[0].buffer) == 0, "an offline run must not collect online data"
     assert np.isfinite(full.rows[-1]["actor_loss"])
 
-    resumed_dir = tmp_path / "resumed"
-    resumed_dir.mkdir()
-    for name in ("config.json", "metrics.csv"):
-        shutil.copy(tmp_path / "full" / name, resumed_dir / name)
-    shutil.copy(tmp_path / "full/checkpoint.prev.pt", resumed_dir / "checkpoint.pt")
-    train(config, resumed_dir, resume=True, progress=False)
-    assert metrics_without_wall_time(resumed_dir) == metrics_without_wall_time(tmp_path / "full")
-
-
-def metrics_without_wall_time(directory):
-    with open(directory / "metrics.csv") as f:
-        return [{k: v for k, v in row.items() if k != "wall_time"} for row in csv.DictReader(f)]
+    interrupted_copy(tmp_path / "full", tmp_path / "resumed")
+    train(config, tmp_path / "resumed", resume=True, progress=False)
+    assert metrics_without_wall_time(tmp_path / "resumed") == metrics_without_wall_time(tmp_path / "full")

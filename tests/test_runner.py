@@ -11,6 +11,8 @@ import torch
 
 import lava_bridge_mj
 
+from conftest import interrupted_copy, metrics_without_wall_time
+
 from lava_bridge_mj.agents.sac import SACConfig
 from lava_bridge_mj.eval import cli
 from lava_bridge_mj.eval.runner import METHOD_STRATEGIES, METHODS, METRIC_FIELDS, Run, RunConfig, train
@@ -29,10 +31,6 @@ def tiny_config(method="auxss", **overrides):
 def read_metrics(path):
     with open(path) as f:
         return list(csv.DictReader(f))
-
-
-def without_wall_time(rows):
-    return [{k: v for k, v in row.items() if k != "wall_time"} for row in rows]
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -65,8 +63,7 @@ def test_same_seed_same_metrics(tmp_path):
     config = tiny_config(steps=300)
     train(config, tmp_path / "a", progress=False)
     train(config, tmp_path / "b", progress=False)
-    a, b = read_metrics(tmp_path / "a/metrics.csv"), read_metrics(tmp_path / "b/metrics.csv")
-    assert without_wall_time(a) == without_wall_time(b)
+    assert metrics_without_wall_time(tmp_path / "a") == metrics_without_wall_time(tmp_path / "b")
 
 
 @pytest.mark.parametrize("method", ["auxss", "hysac_auxss"])
@@ -79,14 +76,10 @@ def test_resume_from_checkpoint_equals_uninterrupted_run(tmp_path, method):
 
     # An interrupted run: only the files as they were at that checkpoint, plus a stale row past it.
     resumed_dir = tmp_path / "resumed"
-    resumed_dir.mkdir()
-    shutil.copy(tmp_path / "full/checkpoint.prev.pt", resumed_dir / "checkpoint.pt")
-    shutil.copy(tmp_path / "full/config.json", resumed_dir / "config.json")
-    shutil.copy(tmp_path / "full/metrics.csv", resumed_dir / "metrics.csv")
+    interrupted_copy(tmp_path / "full", resumed_dir)
     resumed = train(config, resumed_dir, resume=True, progress=False)
 
-    assert without_wall_time(read_metrics(resumed_dir / "metrics.csv")) == \
-        without_wall_time(read_metrics(tmp_path / "full/metrics.csv"))
+    assert metrics_without_wall_time(resumed_dir) == metrics_without_wall_time(tmp_path / "full")
     for name, tensor in full.agent.actor.state_dict().items():
         assert torch.equal(tensor, resumed.agent.actor.state_dict()[name]), name
     np.testing.assert_array_equal(full.strategy.weights, resumed.strategy.weights)
@@ -153,16 +146,7 @@ def seed_files(directory):
     """What a seed's results are: metrics (without wall time), start weights and policy snapshots."""
     weights = np.load(directory / "start_weights.npz")
     policies = {p.name: torch.load(p) for p in sorted((directory / "policies").iterdir())}
-    return without_wall_time(read_metrics(directory / "metrics.csv")), weights["probabilities"], policies
-
-
-@pytest.fixture
-def one_torch_thread():
-    # Bit-identity across batch compositions holds with one thread (see agents/networks.py).
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+    return metrics_without_wall_time(directory), weights["probabilities"], policies
 
 
 @pytest.mark.parametrize("method", ["auxss", "sac"])
@@ -217,8 +201,7 @@ def test_a_batch_resumes_when_a_kill_left_seeds_one_checkpoint_apart(tmp_path):
     resumed = train(config, dirs, seeds=[0, 1], resume=True, progress=False)
     assert resumed.step == 500
     for source, target in zip(full_dirs, dirs):
-        assert without_wall_time(read_metrics(target / "metrics.csv")) == \
-            without_wall_time(read_metrics(source / "metrics.csv"))
+        assert metrics_without_wall_time(target) == metrics_without_wall_time(source)
 
 
 def test_a_batch_refuses_seeds_whose_checkpoints_share_no_step(tmp_path):

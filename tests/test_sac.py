@@ -15,13 +15,7 @@ from lava_bridge_mj.agents.seed_batch import stack_batches
 SMALL = SACConfig(hidden_sizes=(64, 64), batch_size=64, learning_starts=400)
 
 
-@pytest.fixture(autouse=True)
-def one_torch_thread():
-    """Timings and results as in the project's experiments; restored so other tests are unaffected."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")  # timings and results as in the experiments
 
 
 class ReachRight:
