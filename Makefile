@@ -8,9 +8,15 @@ STAMP := $(VENV)/.installed
 MESA_PACKAGES := libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 libosmesa6
 export MUJOCO_GL ?= egl
 
-.PHONY: run test bench setup gl clean
+.PHONY: run expert-video test bench setup gl clean
 
+# The main job: AuxSS on 5 seeds trained together (about 15 min on 2 cores), then a summary table.
+# --resume makes it safe to run again: a finished batch is left as it is, an interrupted one continues.
 run: setup
+	$(BIN)/lava-bridge-bench --method auxss --seeds 0-4 --threads 2 --out runs/auxss --resume
+	$(BIN)/python -m lava_bridge_mj.eval.summary runs/auxss
+
+expert-video: setup
 	$(BIN)/python -m lava_bridge_mj.eval.video --out runs/expert.mp4
 
 test: setup

@@ -41,8 +41,10 @@ class LavaBridgeEnv(gymnasium.Env):
     the whole physics state, so `reset(options={"state": obs})` recreates any observed moment.
 
     ## Rewards
-    Sparse: `goal_reward` (+1) on reaching the goal, `lava_reward` (-1) on touching lava,
-    `step_reward` (0) otherwise.
+    Sparse: `goal_reward` (+1) on reaching the goal, `lava_reward` (0) on touching lava,
+    `step_reward` (0) otherwise. Touching lava ends the episode, which forfeits the goal's +1: that is
+    its penalty. A lava reward of -1 or -0.1 (the paper gives no value) made learning from p0 fail on
+    most tuning seeds, the policies hiding in the start room (docs/calibration.md).
 
     ## Starting State
     `options={"start": "p0"}` (the default): a point in one of three small blobs at the left end of
@@ -74,7 +76,7 @@ class LavaBridgeEnv(gymnasium.Env):
         *,
         layout: Layout | None = None,
         goal_reward: float = 1.0,
-        lava_reward: float = -1.0,
+        lava_reward: float = 0.0,
         step_reward: float = 0.0,
         width: int = 960,
         height: int = 400,

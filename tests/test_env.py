@@ -238,7 +238,7 @@ def test_lava_terminates_at_the_step_kinematics_predicts(env, state):
         assert lava_distance(*obs[:2]) > R and reward == 0.0
         previous = obs
     assert k == expected_env_step, (k, expected_env_step)
-    assert reward == -1.0 and info == {"is_success": False, "lava": True} and not truncated
+    assert reward == env.lava_reward == 0.0 and info == {"is_success": False, "lava": True} and not truncated
     # the moment: the terminal footprint overlaps a pit, the one before did not
     assert lava_distance(*obs[:2]) <= R + 1e-9
     assert abs(obs[1]) + R >= LAYOUT.bridge_width / 2 - 1e-9 or abs(obs[0]) + R >= 1.5 - 1e-9
@@ -257,7 +257,7 @@ def test_lava_at_full_speed_along_a_pit_corner_is_not_missed(env):
     """At 4 m/s the ball moves 4 cm per physics step: it cannot skip the 0.05 m footprint band."""
     env.reset(options={"state": [-1.7, 0.3, 4.0, 0.0]})
     obs, reward, terminated, _, info = env.step([1.0, 0.0])
-    assert terminated and info["lava"] and reward == -1.0
+    assert terminated and info["lava"] and reward == env.lava_reward
     assert R - 0.04 <= lava_distance(*obs[:2]) <= R
 
 
@@ -280,6 +280,13 @@ def test_goal_terminates_with_success_within_the_goal_radius(env, state):
     assert reward == 1.0 and info == {"is_success": True, "lava": False}
     assert goal_distance(obs) <= LAYOUT.goal_radius + 1e-9
     assert goal_distance(previous) > LAYOUT.goal_radius
+
+
+def test_default_rewards_are_the_calibrated_ones():
+    """+1 at the goal and 0 elsewhere, lava included: docs/calibration.md measured that a lava penalty
+    of -1 or -0.1 made AuxSS's policies hide from the bridge; the termination is the penalty."""
+    env = LavaBridgeEnv()
+    assert (env.goal_reward, env.lava_reward, env.step_reward) == (1.0, 0.0, 0.0)
 
 
 def test_custom_rewards():
