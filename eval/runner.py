@@ -374,8 +374,9 @@ class SeedRun:
 class Run:
     """K seeds of one configuration training in lockstep, with the loop that advances them.
 
-    `seed_runs[i]` holds seed i's env, strategy, buffer and files; `agent` is one SAC over all seeds.
-    For a single seed, `rows`, `strategy` and `dir` are that seed's.
+    `seed_runs[i]` holds seed i's env, strategy, buffers and files; `agent` is the method's learner
+    (SAC, BC or IQL) over all seeds, `guide` JSRL's offline guide. `rows` and `strategy` are the first
+    seed's (the single-seed case).
     """
 
     def __init__(self, configs: list[RunConfig], out_dirs: list[str | Path]):
