@@ -79,8 +79,8 @@ CORNER_BAND = 1e-6
 """Valid-state draws keep at least this far from an exact corner on one axis (see the corner test)."""
 
 # Created once: every example starts with a reset, and the env's state is all in (qpos, qvel).
-ENV = LavaBridgeEnv()
-TWIN = LavaBridgeEnv()
+ENV = LavaBridgeEnv(lava_reward=-1.0)  # a lava reward unlike the step reward: the reward itself names the event
+TWIN = LavaBridgeEnv(lava_reward=-1.0)  # an identical second env: replays must give the same bits
 SHADOW = mujoco.MjData(ENV.model)  # replays env steps physics step by physics step
 
 

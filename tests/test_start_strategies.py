@@ -334,7 +334,7 @@ def test_wrapper_resets_real_env_to_state_and_reports_lava_episode_length():
     while not terminated:
         obs, reward, terminated, truncated, info = env.step(np.zeros(2, dtype=np.float32))
         steps += 1
-    assert steps == 3 and info["lava"] and reward == -1.0
+    assert steps == 3 and info["lava"] and reward == env.unwrapped.lava_reward
     assert strategy.weights[0] == pytest.approx((500 - 3) / 500)
 
 
