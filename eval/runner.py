@@ -241,14 +241,15 @@ class SeedRun:
     """One seed's part of a training batch: its env, start strategy, replay buffer, RNGs, metrics
     and run directory. `Run` steps all of its seeds in lockstep."""
 
-    def __init__(self, config: RunConfig, out_dir: str | Path, probe: lava_bridge_mj.LavaBridgeEnv):
+    def __init__(self, config: RunConfig, out_dir: str | Path, probe: lava_bridge_mj.LavaBridgeEnv,
+                 offline: ReplayBuffer | None = None):
         self.config, self.dir = config, Path(out_dir)
         seed = config.seed
         self.states = candidate_states(config)
         self.strategy = make_strategy(config, self.states, probe)
         self.env = StartStateWrapper(gymnasium.make(lava_bridge_mj.ENV_ID, **config.env), self.strategy, seed=seed)
         self.buffer = ReplayBuffer(config.sac.buffer_size, 4, 2)
-        self.offline = demo_buffer(config) if config.method in (*HYBRID_METHODS, *OFFLINE_METHODS, "jsrl") else None
+        self.offline = offline  # the demo transitions (HySAC, JSRL's guide, BC, IQL), shared read-only by the batch
         self.curriculum = JSRLCurriculum(config.jsrl) if config.method == "jsrl" else None
         self.rng = np.random.default_rng(seed)  # warm-up actions and minibatch indices
         self.episodes = 0
@@ -391,7 +392,10 @@ class Run:
         self.config = configs[0]
         # evaluation resets every env with a fixed seed, so one of them can serve as the strategies' probe
         self.eval_envs = [lava_bridge_mj.LavaBridgeEnv(**self.config.env) for _ in range(self.config.eval_episodes)]
-        self.seed_runs = [SeedRun(c, d, probe=self.eval_envs[0]) for c, d in zip(configs, out_dirs)]
+        # the seeds share the config's demo set; the buffer is never written, so one copy serves all
+        uses_demos = self.config.method in (*HYBRID_METHODS, *OFFLINE_METHODS, "jsrl")
+        demos = demo_buffer(self.config) if uses_demos else None
+        self.seed_runs = [SeedRun(c, d, probe=self.eval_envs[0], offline=demos) for c, d in zip(configs, out_dirs)]
         self.agent = make_agent(self.config, seeds)
         # JSRL's guide: an offline learner trained on the demos before the first online step
         self.guide = make_agent(dataclasses.replace(self.config, method=self.config.jsrl.guide), seeds) \
