@@ -4,6 +4,8 @@
     lava-bridge-bench --method sac --steps 300000         # the paper's protocol for plain SAC
     lava-bridge-bench --method auxss --seeds 0-24         # 25 seeds trained together in one process
     lava-bridge-bench --method auxss --config my.json     # any RunConfig field, e.g. SAC sizes
+    lava-bridge-bench sweep --methods auxss,sac --seeds 0-24 --demos 500,7500 --out runs/study
+    lava-bridge-bench report ... / video ...              # subcommands: SUBCOMMANDS below
 """
 
 from __future__ import annotations
@@ -17,6 +19,9 @@ from pathlib import Path
 from lava_bridge_mj.eval.runner import METHODS, RunConfig
 
 DEFAULTS = RunConfig()
+SUBCOMMANDS = {"report": "lava_bridge_mj.eval.report", "video": "lava_bridge_mj.eval.video",
+               "sweep": "lava_bridge_mj.eval.sweep"}
+"""`lava-bridge-bench NAME ...` runs module's main(rest of argv); without a name, the training command."""
 
 
 def _int_at_least(minimum: int, what: str):
@@ -108,17 +113,23 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def read_config_file(path: Path | None, parser: argparse.ArgumentParser) -> dict:
+    """The RunConfig fields of a --config JSON file ({} without one); a usage error if it is unreadable."""
+    if path is None:
+        return {}
+    try:
+        values = json.loads(path.read_text())
+    except OSError as error:
+        parser.error(f"--config {path} cannot be read: {error.strerror}")
+    except ValueError as error:
+        parser.error(f"--config {path} is not valid JSON: {error}")
+    if not isinstance(values, dict):
+        parser.error(f"--config {path} must hold a JSON object of RunConfig fields")
+    return values
+
+
 def _config_from(args: argparse.Namespace, parser: argparse.ArgumentParser) -> RunConfig:
-    values: dict = {}
-    if args.config is not None:
-        try:
-            values = json.loads(args.config.read_text())
-        except OSError as error:
-            parser.error(f"--config {args.config} cannot be read: {error.strerror}")
-        except ValueError as error:
-            parser.error(f"--config {args.config} is not valid JSON: {error}")
-        if not isinstance(values, dict):
-            parser.error(f"--config {args.config} must hold a JSON object of RunConfig fields")
+    values = read_config_file(args.config, parser)
     values["method"] = args.method
     for name in ("seed", "steps", "demos", "eval_every", "eval_episodes"):
         if getattr(args, name) is not None:
@@ -140,6 +151,11 @@ def _check_writable(out: Path, parser: argparse.ArgumentParser) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv and argv[0] in SUBCOMMANDS:
+        import importlib
+
+        return importlib.import_module(SUBCOMMANDS[argv[0]]).main(argv[1:]) or 0
     parser = build_parser()
     args = parser.parse_args(argv)
     config = _config_from(args, parser)

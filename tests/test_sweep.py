@@ -1,0 +1,239 @@
+"""`lava-bridge-bench sweep`: the job plan, and tiny real sweeps (local worker processes and Ray)
+that finish, skip what is finished, resume what is not, isolate failing jobs and refuse bad usage."""
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from conftest import metrics_without_wall_time
+from lava_bridge_mj.eval import cli, sweep
+from lava_bridge_mj.eval.sweep import Job, format_seeds, plan
+
+TINY = {"sac": {"hidden_sizes": [16, 16], "batch_size": 32, "buffer_size": 500, "learning_starts": 100},
+        "bc": {"hidden_sizes": [16, 16], "batch_size": 32}}
+
+
+def tiny_argv(out, config_file, methods="sac,bc", seeds="0-1", steps=300, *extra):
+    return ["--methods", methods, "--seeds", seeds, "--steps", str(steps), "--eval-every", "150",
+            "--eval-episodes", "2", "--config", str(config_file), "--out", str(out), "--workers", "2", *extra]
+
+
+@pytest.fixture(scope="module")
+def config_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("config") / "tiny.json"
+    path.write_text(json.dumps(TINY))
+    return path
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory, config_file):
+    """A tiny sweep (sac and bc, seeds 0-1, 300 steps, two jobs on two local workers), run once."""
+    out = tmp_path_factory.mktemp("sweep") / "out"
+    code = sweep.main(tiny_argv(out, config_file))
+    return out, code
+
+
+def copy_of(finished, tmp_path):
+    out = tmp_path / "out"
+    shutil.copytree(finished[0], out)  # copy2: modification times are kept
+    return out
+
+
+def record(out):
+    return json.loads((out / "sweep.json").read_text())
+
+
+def statuses(out):
+    return {job["job"]: job["status"] for job in record(out)["jobs"]}
+
+
+# --- the plan --------------------------------------------------------------------------------------
+def test_format_seeds_inverts_parse_seeds():
+    for text in ("0", "0-24", "0,3,5-7", "2,1"):
+        assert format_seeds(cli.parse_seeds(text)) == text
+
+
+@pytest.mark.parametrize("methods, demos, seeds, workers, per_job, expected", [
+    # 6 groups cover 2 workers: one job of 25 seeds per group
+    (["auxss", "omega_ss", "sac"], [500, 7500], range(25), 2, 25,
+     [(m, d, tuple(range(25))) for m in ("auxss", "omega_ss", "sac") for d in (500, 7500)]),
+    # 16 workers over 6 groups: 3 jobs per group, sizes 9, 8, 8
+    (["auxss", "omega_ss", "sac"], [500, 7500], range(25), 16, 25,
+     [(m, d, s) for m in ("auxss", "omega_ss", "sac") for d in (500, 7500)
+      for s in (tuple(range(0, 9)), tuple(range(9, 17)), tuple(range(17, 25)))]),
+    # at most 2 seeds per job
+    (["sac"], [500], range(5), 1, 2, [("sac", 500, (0, 1)), ("sac", 500, (2, 3)), ("sac", 500, (4,))]),
+    # more workers than seeds: one seed per job, never an empty job
+    (["bc"], [7500], [3, 7], 8, 25, [("bc", 7500, (3,)), ("bc", 7500, (7,))]),
+    # seeds in the order given, non-contiguous
+    (["iql"], [500], [5, 0, 2], 2, 25, [("iql", 500, (5, 0)), ("iql", 500, (2,))]),
+])
+def test_plan_splits_each_group_into_the_fewest_batches_that_keep_the_workers_busy(
+        methods, demos, seeds, workers, per_job, expected):
+    assert plan(methods, demos, list(seeds), workers, per_job) == [Job(*e) for e in expected]
+
+
+def test_job_names_and_run_directories():
+    job = Job("auxss", 7500, (0, 1, 2, 5))
+    assert job.name == "auxss-d7500 seeds 0-2,5"
+    assert job.run_dirs(Path("study")) == [Path("study/auxss-d7500/seed0"), Path("study/auxss-d7500/seed1"),
+                                           Path("study/auxss-d7500/seed2"), Path("study/auxss-d7500/seed5")]
+
+
+# --- local sweeps ----------------------------------------------------------------------------------
+def test_a_local_sweep_writes_every_run_as_a_single_run_would(finished, config_file):
+    out, code = finished
+    assert code == 0
+    assert statuses(out) == {"sac-d500 seeds 0-1": "done", "bc-d500 seeds 0-1": "done"}
+    for method in ("sac", "bc"):
+        for seed in (0, 1):
+            run = out / f"{method}-d500" / f"seed{seed}"
+            assert [row["step"] for row in metrics_without_wall_time(run)] == ["150", "300"]
+            assert (run / "final.pt").exists() and (run / "policies" / "step_300.pt").exists()
+            # the configuration a single `lava-bridge-bench` run of the same options writes
+            parser = cli.build_parser()
+            args = parser.parse_args(["--method", method, "--seed", str(seed), "--steps", "300", "--eval-every",
+                                      "150", "--eval-episodes", "2", "--config", str(config_file)])
+            assert json.loads((run / "config.json").read_text()) == cli._config_from(args, parser).to_dict()
+    entry = record(out)["jobs"][0]
+    assert entry["trained"] == [0, 1] and entry["error"] is None and entry["wall_time"] > 0
+    assert record(out)["arguments"]["methods"] == ["sac", "bc"] and record(out)["status"] == "finished"
+
+
+def test_running_a_finished_sweep_again_skips_every_run(finished, config_file, tmp_path):
+    out = copy_of(finished, tmp_path)
+    metrics = sorted(out.glob("*/seed*/metrics.csv"))
+    before = [m.stat().st_mtime_ns for m in metrics]
+    assert sweep.main(tiny_argv(out, config_file)) == 0
+    assert set(statuses(out).values()) == {"skipped"}
+    assert [m.stat().st_mtime_ns for m in metrics] == before
+
+
+def test_an_unfinished_run_resumes_from_its_checkpoint_and_only_it_trains(finished, config_file, tmp_path):
+    out = copy_of(finished, tmp_path)
+    stopped = out / "sac-d500" / "seed1"  # as if killed between the checkpoints at steps 150 and 300
+    (stopped / "final.pt").unlink()
+    shutil.copy(stopped / "checkpoint.prev.pt", stopped / "checkpoint.pt")
+    os.utime(stopped / "policies" / "step_150.pt", (1e9, 1e9))  # a restart would rewrite it
+    done = out / "sac-d500" / "seed0" / "metrics.csv"
+    done_mtime = done.stat().st_mtime_ns
+
+    assert sweep.main(tiny_argv(out, config_file)) == 0
+    sac = record(out)["jobs"][0]
+    assert (sac["status"], sac["trained"], sac["skipped"], sac["resumed"]) == ("done", [1], [0], {"1": 150})
+    assert statuses(out)["bc-d500 seeds 0-1"] == "skipped"
+    assert (stopped / "policies" / "step_150.pt").stat().st_mtime == 1e9
+    assert (stopped / "final.pt").exists() and done.stat().st_mtime_ns == done_mtime
+    assert metrics_without_wall_time(stopped) == metrics_without_wall_time(finished[0] / "sac-d500" / "seed1")
+
+
+def test_a_failing_job_is_reported_and_the_others_finish(config_file, tmp_path, capsys):
+    out = tmp_path / "out"
+    foreign = out / "bc-d500" / "seed0"
+    foreign.mkdir(parents=True)
+    (foreign / "config.json").write_text(json.dumps({"method": "bc", "steps": 5}))
+
+    assert sweep.main(tiny_argv(out, config_file, "sac,bc", "0")) == 1
+    jobs = {job["job"]: job for job in record(out)["jobs"]}
+    assert jobs["sac-d500 seeds 0"]["status"] == "done"
+    assert (out / "sac-d500" / "seed0" / "final.pt").exists()
+    failed = jobs["bc-d500 seeds 0"]
+    assert failed["status"] == "failed" and "another configuration" in failed["error"]
+    assert json.loads((foreign / "config.json").read_text()) == {"method": "bc", "steps": 5}  # not overwritten
+    printed = capsys.readouterr().out
+    assert "error in bc-d500 seeds 0" in printed and "1 done, 1 failed" in printed
+
+
+def test_a_configuration_one_method_rejects_fails_only_its_jobs(tmp_path):
+    config = tmp_path / "auxss_only.json"
+    config.write_text(json.dumps({**TINY, "strategy": {"sigma": 0.2}}))  # start-strategy options: bc has none
+    out = tmp_path / "out"
+    assert sweep.main(tiny_argv(out, config, "auxss,bc", "0")) == 1
+    jobs = {job["job"]: job for job in record(out)["jobs"]}
+    assert jobs["auxss-d500 seeds 0"]["status"] == "done"
+    assert jobs["bc-d500 seeds 0"]["status"] == "failed" and "sigma" in jobs["bc-d500 seeds 0"]["error"]
+    assert not (out / "bc-d500").exists()
+
+
+def test_a_worker_that_dies_without_a_result_fails_only_its_job(config_file, tmp_path, monkeypatch):
+    monkeypatch.setattr(sweep, "JOB_COMMAND", "import sys; print('boom'); sys.exit(3)")
+    out = tmp_path / "out"
+    assert sweep.main(tiny_argv(out, config_file, "sac,bc", "0")) == 1
+    for job in record(out)["jobs"]:
+        assert job["status"] == "failed" and "code 3" in job["error"] and "boom" in job["error"]
+
+
+def test_ctrl_c_stops_the_jobs_after_a_checkpoint(config_file, tmp_path):
+    out = tmp_path / "out"
+    process = subprocess.Popen([sys.executable, "-m", "lava_bridge_mj.eval.sweep",
+                                *tiny_argv(out, config_file, "sac", "0", 100_000)],
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    checkpoint = out / "sac-d500" / "seed0" / "checkpoint.pt"
+    deadline = time.monotonic() + 120
+    while not checkpoint.exists() and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.1)
+    process.send_signal(signal.SIGINT)
+    output = process.communicate(timeout=120)[0]
+    assert process.returncode == 130, output
+    job = record(out)["jobs"][0]
+    assert record(out)["status"] == "interrupted" and job["status"] == "interrupted", job
+    assert "after writing a checkpoint" in job["error"]
+    assert not (checkpoint.parent / "final.pt").exists()
+
+
+# --- Ray ---------------------------------------------------------------------------------------------
+def test_the_ray_backend_runs_the_same_sweep(finished, config_file, tmp_path):
+    pytest.importorskip("ray")
+    out = tmp_path / "out"
+    assert sweep.main(tiny_argv(out, config_file, "sac,bc", "0-1", 300, "--backend", "ray")) == 0
+    assert set(statuses(out).values()) == {"done"}
+    for run in sorted(finished[0].glob("*/seed*")):  # with one torch thread, the same numbers as local
+        assert metrics_without_wall_time(out / run.parent.name / run.name) == metrics_without_wall_time(run)
+
+
+# --- usage errors -----------------------------------------------------------------------------------
+@pytest.mark.parametrize("change, message", [
+    ({"--methods": "sac,dqn"}, "unknown method 'dqn'"),
+    ({"--methods": "sac,sac"}, "given twice"),
+    ({"--seeds": "3-1"}, "range of non-negative seeds"),
+    ({"--demos": "500,600"}, "unknown demo set '600'"),
+    ({"--workers": "0"}, "positive integer"),
+    ({"--address": "127.0.0.1:6379"}, "--address needs --backend ray"),
+    ({"--steps": "-5"}, "positive integer"),
+])
+def test_usage_errors_exit_2_and_write_nothing(change, message, config_file, tmp_path, capsys):
+    argv = tiny_argv(tmp_path / "out", config_file)
+    for option, value in change.items():
+        if option in argv:
+            argv[argv.index(option) + 1] = value
+        else:
+            argv += [option, value]
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(["sweep", *argv])  # through the lava-bridge-bench entry point
+    assert exit_.value.code == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_configuration_every_method_rejects_is_a_usage_error(tmp_path, capsys):
+    config = tmp_path / "bad.json"
+    config.write_text(json.dumps({"sac": {"hidden_sizes": [16, 16], "no_such_field": 1}}))
+    with pytest.raises(SystemExit) as exit_:
+        sweep.main(tiny_argv(tmp_path / "out", config))
+    assert exit_.value.code == 2 and "no_such_field" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_ray_backend_without_ray_names_the_extra(config_file, tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray now fails as if it were not installed
+    with pytest.raises(SystemExit) as exit_:
+        sweep.main(tiny_argv(tmp_path / "out", config_file, "sac", "0", 300, "--backend", "ray"))
+    assert exit_.value.code == 2 and "lava-bridge-mj[ray]" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
