@@ -67,7 +67,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "p0 (the MDP's starts) and ood (unseen starts) as it learns. Writes a run "
                     "directory with config.json, "
                     "metrics.csv, start_weights.npz, checkpoints and policy snapshots. "
-                    "Ctrl-C (or SIGTERM) stops after writing a checkpoint; --resume continues.")
+                    "Ctrl-C (or SIGTERM) stops after writing a checkpoint; --resume continues.",
+        epilog=f"Subcommands, named first: lava-bridge-bench {{{','.join(SUBCOMMANDS)}}} ...; "
+               "`lava-bridge-bench NAME --help` describes each (report: figures and tables from a directory "
+               "of runs; video: an mp4 of a run's policy from p0 and ood).")
     parser.add_argument("--method", required=True, choices=METHODS,
                         help="sac: plain SAC from p0; auxss: the paper's episode-length start-state "
                              "safety; omega_ss: random-policy Monte-Carlo safety; uniform_ss: uniform "

@@ -1,0 +1,374 @@
+"""`lava-bridge-bench report DIR [--out OUT]`: the paper's figures and tables from a sweep directory.
+
+    lava-bridge-bench report runs/sweep                 # writes runs/sweep/report/
+    python -m lava_bridge_mj.eval.report runs/sweep --out paper_figures
+
+Runs are found under DIR at any depth by their config.json and metrics.csv and grouped by configuration
+(eval/aggregate.py: method and demo set, plus any other setting that differs). OUT receives, each as
+PNG and PDF:
+    benchmark          training return and success from p0 and from ood versus steps, every method
+                       (its 0.5K-demo runs where it has them): the paper's benchmark comparison
+    demo_size          the same for the methods that have both 0.5K and 7.5K runs (solid and dashed)
+    start_distributions  AuxSS, Omega-SS, U-SS and GoalDist-SS: the start-distribution study
+    maze               the maze (walls, lava, goal, p0 blobs, ood spots, the candidate demo states) and
+                       an AuxSS run's start-state probabilities on those states at a few evaluations
+and report.md, which embeds the PNGs (relative links) with two tables: IQM and 95% CI at the last
+evaluation per group, and the steps to p0 success >= 0.8 with how many seeds got there. Lines are IQMs
+across seeds, bands their 95% stratified-bootstrap CIs (rliable). A figure none of whose methods is in
+DIR is skipped with a line in report.md saying so. For the offline methods (bc, iql) a step is a
+gradient step, not an env step; their legend entries say so.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from lava_bridge_mj.eval.aggregate import (BOOTSTRAP_REPS, BOOTSTRAP_SEED, METRICS, THRESHOLD, Curve, Group,
+                                           RunRecord, find_runs, group_runs, iqm_curves, steps_to_threshold)
+
+STANDARD_DEMOS = 500
+"""The paper's benchmark protocol gives every demo-using method 500 transitions (0.5K)."""
+DEMO_SIZES = (500, 7500)
+START_STUDY = ("auxss", "omega_ss", "uniform_ss", "goaldist_ss")
+"""The start-distribution study's methods (paper, figure 'ss_dists')."""
+OFFLINE = ("bc", "iql")
+METRIC_TITLES = {"train_return": "training return", "success_p0": "success from p0 (ID)",
+                 "success_ood": "success from ood (OOD)"}
+WEIGHT_SNAPSHOTS = 4
+"""Evaluations of the AuxSS run whose start-state probabilities the maze figure paints."""
+
+
+# --- figures -------------------------------------------------------------------------------------
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")  # files only, never a window
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _style(groups: list[Group]) -> dict[str, dict]:
+    """Colour by method (the same in every figure), line style by demo set, then by variant."""
+    from lava_bridge_mj.eval.runner import METHODS
+
+    plt = _pyplot()
+    palette = plt.get_cmap("tab10").colors
+    variant_styles = (":", "-.", (0, (5, 1, 1, 1)))
+    styles, seen = {}, {}
+    for group in groups:
+        index = METHODS.index(group.method) if group.method in METHODS else len(METHODS)
+        key = (group.method, group.demos)
+        variant = seen.get(key, 0)
+        seen[key] = variant + 1
+        base = "-" if group.demos == STANDARD_DEMOS else "--"
+        styles[group.label] = {"color": palette[index % len(palette)],
+                               "linestyle": base if variant == 0 else variant_styles[(variant - 1) % 3]}
+    return styles
+
+
+def _legend_label(group: Group) -> str:
+    suffix = ", gradient steps" if group.method in OFFLINE else ""
+    return f"{group.label} (n={len(group.runs)}{suffix})"
+
+
+def curves_figure(groups: list[Group], curves: dict[str, dict[str, Curve]], title: str):
+    """Three panels (training return, success from p0, from ood): IQM lines with CI bands per group."""
+    plt = _pyplot()
+    styles = _style(groups)
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.2), constrained_layout=True)
+    for ax, metric in zip(axes, ("train_return", "success_p0", "success_ood")):
+        for group in groups:
+            curve, style = curves[group.label][metric], styles[group.label]
+            ax.plot(curve.steps, curve.iqm, label=_legend_label(group), linewidth=1.8, **style)
+            ax.fill_between(curve.steps, curve.low, curve.high, color=style["color"], alpha=0.18, linewidth=0)
+        ax.set_title(METRIC_TITLES[metric])
+        ax.set_xlabel("steps")
+        ax.grid(alpha=0.3)
+        if metric.startswith("success"):
+            ax.set_ylim(-0.03, 1.03)
+            ax.set_ylabel("task completion rate (IQM)")
+        else:
+            ax.set_ylabel("mean episode return (IQM)")
+    handles, labels = axes[0].get_legend_handles_labels()
+    columns = max(1, min(4, len(labels), 190 // (max(map(len, labels)) + 8)))  # about 190 characters fit a row
+    fig.legend(handles, labels, loc="outside lower center", ncol=columns, fontsize=8, frameon=False)
+    fig.suptitle(title)
+    return fig
+
+
+def draw_maze(ax, layout) -> None:
+    """The maze from above: floor, outer walls, lava pits, goal, p0 blobs (green), ood spots (blue)."""
+    from matplotlib.patches import Circle, Rectangle
+
+    def box(b, **style):
+        ax.add_patch(Rectangle((b.x - b.half_x, b.y - b.half_y), 2 * b.half_x, 2 * b.half_y, **style))
+
+    hx, hy = layout.half_extent
+    ax.add_patch(Rectangle((-hx, -hy), 2 * hx, 2 * hy, facecolor="#f2efe8", edgecolor="none", zorder=0))
+    for wall in layout.walls.values():
+        box(wall, facecolor="#4d4d4d", edgecolor="none", zorder=1)
+    for pit in layout.lava_pits.values():
+        box(pit, facecolor="#e8571e", edgecolor="none", zorder=1, label="lava")
+    for disc in layout.p0_blobs:
+        ax.add_patch(Circle(disc[:2], disc.radius, facecolor="#2ca02c", alpha=0.55, zorder=2, label="p0"))
+    for disc in layout.ood_spots:
+        ax.add_patch(Circle(disc[:2], disc.radius, facecolor="#1f5fd0", alpha=0.55, zorder=2, label="ood"))
+    ax.add_patch(Circle(layout.goal, layout.goal_radius, facecolor="none", edgecolor="#b30000", linewidth=2, zorder=2))
+    ax.plot(*layout.goal, marker="x", color="#b30000", markersize=8, zorder=2, label="goal")
+    t = layout.wall_thickness
+    ax.set_xlim(-hx - t, hx + t)
+    ax.set_ylim(-hy - t, hy + t)
+    ax.set_aspect("equal")
+    ax.set_xticks([])
+    ax.set_yticks([])
+
+
+def maze_figure(layout, states: np.ndarray | None, weights: list[tuple[float, float, np.ndarray]], caption: str):
+    """The maze with the candidate states, then one panel per (step, p0 success, probabilities) with the
+    probabilities painted on the states, relative to uniform (1 = uniform sampling)."""
+    plt = _pyplot()
+    from matplotlib.colors import LogNorm
+
+    rows = 1 + math.ceil(len(weights) / 2)
+    fig = plt.figure(figsize=(12, 2.7 * rows + 0.6), constrained_layout=True)
+    grid = fig.add_gridspec(rows, 2)
+    top = fig.add_subplot(grid[0, :])
+    draw_maze(top, layout)
+    if states is not None:
+        top.scatter(states[:, 0], states[:, 1], s=9, color="black", zorder=3, label="demo states")
+    handles, labels = top.get_legend_handles_labels()
+    unique = dict(zip(labels, handles))
+    top.legend(unique.values(), unique.keys(), loc="upper center", bbox_to_anchor=(0.5, -0.02), ncol=5, fontsize=8,
+               frameon=False)
+    top.set_title(caption, fontsize=10)
+    if weights:
+        relative = [p * len(p) for _, _, p in weights]
+        positive = np.concatenate(relative)
+        positive = positive[positive > 0]
+        norm = LogNorm(vmin=positive.min(), vmax=max(positive.max(), positive.min() * 1.01))
+        for i, ((step, success, _), rel) in enumerate(zip(weights, relative)):
+            ax = fig.add_subplot(grid[1 + i // 2, i % 2])
+            draw_maze(ax, layout)
+            order = np.argsort(rel)  # the most likely starts drawn last, on top
+            points = ax.scatter(states[order, 0], states[order, 1], c=np.clip(rel[order], norm.vmin, None), s=14,
+                                cmap="viridis", norm=norm, zorder=3, edgecolors="none")
+            ax.set_title(f"step {step:,.0f} (p0 success {success:.2f})", fontsize=9)
+        fig.colorbar(points, ax=fig.axes[1:], shrink=0.8,
+                     label="start probability x number of states (1 = uniform)")
+    return fig
+
+
+def save_figure(fig, out: Path, name: str) -> list[Path]:
+    """`name`.png and `name`.pdf in `out`, each written atomically."""
+    from lava_bridge_mj.eval.atomic import atomic_write
+
+    paths = []
+    for kind in ("png", "pdf"):
+        path = out / f"{name}.{kind}"
+        atomic_write(path, lambda f: fig.savefig(f, format=kind, dpi=130))
+        paths.append(path)
+    _pyplot().close(fig)
+    return paths
+
+
+# --- choosing what goes where --------------------------------------------------------------------
+def benchmark_groups(groups: list[Group], methods: tuple[str, ...] | None = None) -> list[Group]:
+    """Per method (all, or those in `methods`): its 0.5K groups, or all of its groups if it has none."""
+    chosen = []
+    for method in dict.fromkeys(g.method for g in groups):
+        if methods is not None and method not in methods:
+            continue
+        mine = [g for g in groups if g.method == method]
+        standard = [g for g in mine if g.demos == STANDARD_DEMOS]
+        chosen += standard or mine
+    return chosen
+
+
+def demo_size_groups(groups: list[Group]) -> list[Group]:
+    """The groups of every method that has runs with each demo set of the study (0.5K and 7.5K)."""
+    both = [m for m in dict.fromkeys(g.method for g in groups)
+            if all(any(g.method == m and g.demos == d for g in groups) for d in DEMO_SIZES)]
+    return [g for g in groups if g.method in both and g.demos in DEMO_SIZES]
+
+
+def weights_run(groups: list[Group], threshold: float) -> RunRecord | None:
+    """The AuxSS run whose start weights the maze figure shows: of the first AuxSS group (0.5K first)
+    with start_weights.npz, the lowest seed that reached the threshold, else its lowest seed."""
+    for group in benchmark_groups(groups, ("auxss",)):
+        runs = [run for run in group.runs if (run.path / "start_weights.npz").is_file()]
+        if runs:
+            reached = steps_to_threshold(group, threshold).per_seed
+            solved = [run for run in runs if math.isfinite(reached[run.seed])]
+            return (solved or runs)[0]
+    return None
+
+
+def _layout(config: dict):
+    import lava_bridge_mj
+
+    fields = {f.name for f in dataclasses.fields(lava_bridge_mj.Layout)}
+    return lava_bridge_mj.Layout(**{k: v for k, v in config.get("env", {}).items() if k in fields})
+
+
+# --- the report ----------------------------------------------------------------------------------
+def _interval(curve: Curve, digits: int = 2) -> str:
+    if not len(curve.steps) or not np.isfinite(curve.iqm[-1]):
+        return "-"
+    return f"{curve.iqm[-1]:.{digits}f} [{curve.low[-1]:.{digits}f}, {curve.high[-1]:.{digits}f}]"
+
+
+def _steps(value: float) -> str:
+    return f"{value:,.0f}" if math.isfinite(value) else "not reached"
+
+
+def _runs_table(groups: list[Group]) -> list[str]:
+    lines = ["| group | seeds | evaluations used (last step) |", "|---|---|---:|"]
+    for g in groups:
+        steps = g.steps
+        ragged = "" if len(set(g.last_steps)) == 1 else \
+            f"; seeds stop at {min(g.last_steps):,.0f}-{max(g.last_steps):,.0f}, later evaluations not shown"
+        last = f"{steps[-1]:,.0f}" if len(steps) else "none in common"
+        lines.append(f"| {g.label} | {len(g.runs)}: {', '.join(map(str, g.seeds))} | {len(steps)} ({last}{ragged}) |")
+    return lines
+
+
+def _maze_section(groups: list[Group], threshold: float, root: Path, out: Path) -> list[str]:
+    """Draw maze.png/pdf; the report's paragraph about it."""
+    chosen = weights_run(groups, threshold)
+    source = chosen or next((r for g in groups for r in g.runs if (r.path / "start_weights.npz").is_file()), None)
+    states, snapshots = None, []
+    if source is not None:  # every run's start_weights.npz holds its candidate states
+        with np.load(source.path / "start_weights.npz") as saved:
+            states, steps, probabilities = saved["states"], saved["steps"], saved["probabilities"]
+    if chosen is not None:
+        success = {row["step"]: row["success_p0"] for row in chosen.rows}
+        picks = np.unique(np.linspace(0, len(steps) - 1, min(WEIGHT_SNAPSHOTS, len(steps))).round().astype(int))
+        snapshots = [(float(steps[i]), success.get(float(steps[i]), math.nan), probabilities[i]) for i in picks]
+        caption = (f"start weights of {chosen.method} seed {chosen.seed} ({chosen.path}); "
+                   f"{len(states)} candidate demo states")
+        text = (f"The maze (walls grey, lava orange, goal red, p0 blobs green, ood spots blue) with the {len(states)} "
+                f"candidate demo states, then AuxSS's start-state probabilities on them at {len(snapshots)} "
+                f"evaluations of `{chosen.path}` (seed {chosen.seed}).")
+    else:
+        with_states = f" with the {len(states)} candidate demo states" if states is not None else ""
+        caption = "the maze" + with_states
+        text = (f"The maze{with_states}. *No AuxSS run with start_weights.npz in `{root}`: the start weights "
+                f"are not shown.*")
+    layout = _layout((source or groups[0].runs[0]).config)
+    save_figure(maze_figure(layout, states, snapshots, caption), out, "maze")
+    return [text, "", "![The maze and AuxSS start weights](maze.png)", "", "[PDF](maze.pdf)"]
+
+
+def _last_evaluation_table(groups: list[Group], curves: dict[str, dict[str, Curve]]) -> list[str]:
+    lines = ["IQM [95% CI] across seeds at the last step all of a group's seeds have.", "",
+             "| group | seeds | step | success from p0 | success from ood | training return |",
+             "|---|---:|---:|---:|---:|---:|"]
+    for g in groups:
+        c = curves[g.label]
+        step = f"{c['success_p0'].steps[-1]:,.0f}" if len(c["success_p0"].steps) else "-"
+        lines.append(f"| {g.label} | {len(g.runs)} | {step} | {_interval(c['success_p0'])} | "
+                     f"{_interval(c['success_ood'])} | {_interval(c['train_return'], 3)} |")
+    return lines
+
+
+def _threshold_table(groups: list[Group], threshold: float) -> list[str]:
+    lines = ["Per seed, the first evaluation at or above the threshold. Median and IQM are over all seeds, a seed "
+             "that never got there counting as infinitely late: they read *not reached* when such seeds reach the "
+             "middle of the distribution.", "",
+             "| group | reached | median | IQM | per seed (seed: step) |", "|---|---:|---:|---:|---|"]
+    for g in groups:
+        t = steps_to_threshold(g, threshold)
+        per_seed = ", ".join(f"{seed}: {_steps(step) if math.isfinite(step) else 'never'}"
+                             for seed, step in t.per_seed.items())
+        lines.append(f"| {g.label} | {t.reached} of {len(t.per_seed)} | {_steps(t.median)} | {_steps(t.iqm)} | "
+                     f"{per_seed} |")
+    return lines
+
+
+def build_report(root: Path, out: Path, threshold: float = THRESHOLD, reps: int = BOOTSTRAP_REPS,
+                 runs: list[RunRecord] | None = None) -> Path:
+    """Write every figure and report.md for the runs under `root` (or `runs`, found there already) into
+    `out`; returns report.md's path. ValueError, before anything is written, when `root` holds no run."""
+    from lava_bridge_mj.eval.atomic import atomic_write_text
+    from lava_bridge_mj.eval.runner import METHODS
+
+    groups = group_runs(runs if runs is not None else find_runs(root))
+    curves = {g.label: iqm_curves(g, METRICS, reps=reps) for g in groups}
+    out.mkdir(parents=True, exist_ok=True)
+    lines = [f"# LavaBridge-v0 report: `{root}`", "",
+             f"{sum(len(g.runs) for g in groups)} runs in {len(groups)} groups (one configuration each; "
+             f"eval/aggregate.py says how runs are grouped). Lines and table entries are interquartile means "
+             f"(IQM) across seeds; bands and brackets are 95% stratified-bootstrap confidence intervals (rliable, "
+             f"{reps:,} resamples, bootstrap seed {BOOTSTRAP_SEED}). Curves use the evaluation steps that every "
+             f"seed of a group has. For bc and iql a step is a gradient step on the demos.", "",
+             *_runs_table(groups)]
+
+    def add_figure(name: str, title: str, chosen: list[Group], about: str, skipped: str,
+                   wanted: tuple[str, ...] = ()) -> None:
+        lines.extend(["", f"## {title}", ""])
+        if not chosen:
+            lines.append(f"*Skipped: {skipped}*")
+            return
+        save_figure(curves_figure(chosen, curves, title), out, name)
+        lines.append(about)
+        missing = [m for m in wanted if m not in {g.method for g in chosen}]
+        if missing:
+            lines.append(f"Not in this directory: {', '.join(missing)}.")
+        lines.extend(["", f"![{title}]({name}.png)", "", f"[PDF]({name}.pdf)"])
+
+    add_figure("benchmark", "Benchmark comparison", benchmark_groups(groups),
+               "Every method, with 0.5K demo transitions where it has runs with them.", "no runs.", METHODS)
+    add_figure("demo_size", "Demo-size study: 0.5K vs 7.5K", demo_size_groups(groups),
+               "The methods with runs on both demo sets; solid lines 0.5K, dashed 7.5K.",
+               "no method has runs with both 0.5K and 7.5K demo transitions.")
+    add_figure("start_distributions", "Start-distribution study", benchmark_groups(groups, START_STUDY),
+               "SAC trained from each start-state distribution over the same candidate demo states.",
+               f"none of {', '.join(START_STUDY)} has runs here.", START_STUDY)
+    lines.extend(["", "## The maze and AuxSS's start weights", "", *_maze_section(groups, threshold, root, out)])
+    lines.extend(["", "## At the last evaluation", "", *_last_evaluation_table(groups, curves)])
+    lines.extend(["", f"## Steps to p0 success >= {threshold:g}", "", *_threshold_table(groups, threshold)])
+    report = out / "report.md"
+    atomic_write_text(report, "\n".join(lines) + "\n")
+    return report
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="lava-bridge-bench report",
+        description="Regenerate the paper's figures (PNG and PDF) and a Markdown report with IQM/CI tables "
+                    "from a directory of runs (found at any depth by config.json and metrics.csv).")
+    parser.add_argument("dir", type=Path, help="directory holding the runs, e.g. a sweep's output")
+    parser.add_argument("--out", type=Path, default=None, help="where to write the figures and report.md "
+                        "(default: DIR/report)")
+    parser.add_argument("--threshold", type=float, default=THRESHOLD,
+                        help="p0 success that counts as solved, for steps-to-threshold (default: %(default)s)")
+    parser.add_argument("--reps", type=int, default=BOOTSTRAP_REPS,
+                        help="bootstrap resamples per confidence interval (default: %(default)s)")
+    args = parser.parse_args(argv)
+    if args.reps < 1:
+        parser.error(f"--reps must be >= 1, got {args.reps}")
+    if not 0 <= args.threshold <= 1:
+        parser.error(f"--threshold must be a success rate in [0, 1], got {args.threshold}")
+    out = args.out if args.out is not None else args.dir / "report"
+    if out.exists() and not out.is_dir():
+        print(f"lava-bridge-bench report: error: --out {out} exists and is not a directory", file=sys.stderr)
+        return 2
+    try:
+        runs = find_runs(args.dir)  # checked before anything is written
+    except ValueError as error:
+        print(f"lava-bridge-bench report: error: {error}", file=sys.stderr)
+        return 2
+    report = build_report(args.dir, out, args.threshold, args.reps, runs)
+    print(f"wrote {report} and its figures from {len(runs)} runs")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

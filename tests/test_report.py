@@ -1,0 +1,257 @@
+"""Aggregates (IQM, bootstrap CIs, steps to threshold, grouping) against hand-computed values on
+synthetic run directories, and the report command's figures and Markdown."""
+
+import csv
+import json
+import math
+import re
+import subprocess
+import sys
+
+import imageio.v2 as imageio
+import numpy as np
+import pytest
+
+pytest.importorskip("rliable", reason="the report needs the plots extra: pip install -e '.[plots]'")
+
+from rliable import metrics as rliable_metrics  # noqa: E402
+
+from lava_bridge_mj.eval import aggregate, cli, report  # noqa: E402
+from lava_bridge_mj.eval.runner import METHODS, METRIC_FIELDS, RunConfig  # noqa: E402
+
+BASE_CONFIG = RunConfig().to_dict()
+
+# four seeds of success from p0 at steps 1000..4000, chosen so that the IQM (mean of the middle two of
+# four) is easy by hand: step 1000 -> (0 + 0) / 2, 2000 -> (0.2 + 0.4) / 2, 3000 -> (0.6 + 0.8) / 2,
+# 4000 -> (0.9 + 1.0) / 2. First step >= 0.8: 3000, 4000, 2000, never.
+P0 = {0: [0.0, 0.2, 0.8, 1.0], 1: [0.0, 0.4, 0.6, 0.9], 2: [0.1, 0.9, 1.0, 1.0], 3: [0.0, 0.0, 0.0, 0.0]}
+P0_IQM = [0.0, 0.3, 0.7, 0.95]
+
+
+def write_run(directory, method="auxss", seed=0, demos=500, p0=(0.0, 0.5), ood=None, train=None, steps=None,
+              weights=False, **overrides):
+    """A run directory as the runner writes it: config.json, metrics.csv, optionally start_weights.npz."""
+    directory.mkdir(parents=True)
+    config = {**BASE_CONFIG, "method": method, "seed": seed, "demos": demos, **overrides}
+    (directory / "config.json").write_text(json.dumps(config))
+    steps = steps or [1000 * (i + 1) for i in range(len(p0))]
+    ood = ood if ood is not None else [v / 2 for v in p0]
+    train = train if train is not None else [v - 0.5 for v in p0]
+    with open(directory / "metrics.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=METRIC_FIELDS)
+        writer.writeheader()
+        for step, a, b, r in zip(steps, p0, ood, train):
+            writer.writerow({name: 0.0 for name in METRIC_FIELDS} |
+                            {"step": step, "success_p0": a, "success_ood": b, "train_return": r})
+    if weights:
+        rng = np.random.default_rng(seed)
+        states = np.column_stack([rng.uniform(-5, 5, 30), rng.uniform(-0.1, 0.1, 30), rng.normal(0, 1, (30, 2))])
+        probabilities = rng.dirichlet(np.ones(30), size=len(steps))
+        np.savez(directory / "start_weights.npz", steps=np.array(steps), states=states, probabilities=probabilities)
+
+
+def hand_group(tmp_path, seeds=P0, name="hand"):
+    for seed, p0 in seeds.items():
+        write_run(tmp_path / name / f"seed{seed}", seed=seed, p0=p0)
+    [group] = aggregate.group_runs(aggregate.find_runs(tmp_path / name))
+    return group
+
+
+# --- aggregates ------------------------------------------------------------------------------------
+def test_iqm_curve_by_hand_and_ci_contains_it(tmp_path):
+    group = hand_group(tmp_path)
+    assert group.label == "auxss (0.5K)" and group.seeds == [0, 1, 2, 3]
+    curve = aggregate.iqm_curves(group, ("success_p0",), reps=1000)["success_p0"]
+    np.testing.assert_array_equal(curve.steps, [1000, 2000, 3000, 4000])
+    np.testing.assert_allclose(curve.iqm, P0_IQM)
+    # the estimator is rliable's aggregate_iqm, step by step
+    scores = group.scores("success_p0")
+    np.testing.assert_allclose(curve.iqm, [rliable_metrics.aggregate_iqm(scores[:, [t]]) for t in range(4)])
+    assert np.all(curve.low <= curve.iqm) and np.all(curve.iqm <= curve.high)
+    assert np.all(curve.low >= scores.min(0)) and np.all(curve.high <= scores.max(0))
+    assert curve.low[0] == 0.0  # three of four seeds at 0
+    assert curve.high[2] - curve.low[2] > 0.2  # 0, 0.6, 0.8, 1.0: a wide interval from four seeds
+
+
+def test_ci_narrows_with_more_seeds_and_vanishes_without_spread(tmp_path):
+    four = aggregate.iqm_curves(hand_group(tmp_path), ("success_p0",), reps=1000)["success_p0"]
+    sixteen_seeds = {4 * copy + seed: p0 for copy in range(4) for seed, p0 in P0.items()}  # same distribution
+    sixteen = aggregate.iqm_curves(hand_group(tmp_path, sixteen_seeds, "x16"), ("success_p0",), reps=1000)["success_p0"]
+    np.testing.assert_allclose(sixteen.iqm, four.iqm)
+    assert (sixteen.high - sixteen.low)[2] < 0.7 * (four.high - four.low)[2]
+    same = aggregate.iqm_curves(hand_group(tmp_path, {s: [0.25, 0.75] for s in range(4)}, "flat"), ("success_p0",),
+                                reps=200)["success_p0"]
+    np.testing.assert_array_equal(same.low, [0.25, 0.75])
+    np.testing.assert_array_equal(same.high, [0.25, 0.75])
+
+
+def test_two_seed_percentile_interval_by_hand(tmp_path):
+    # seeds at 0 and 1: resamples {0,0}, {0,1}, {1,1} have IQM (here the plain mean) 0, 0.5, 1 with
+    # probabilities 1/4, 1/2, 1/4, so the 2.5% and 97.5% percentiles are 0 and 1
+    group = hand_group(tmp_path, {0: [0.0], 1: [1.0]}, "two")
+    curve = aggregate.iqm_curves(group, ("success_p0",), reps=2000)["success_p0"]
+    assert (curve.iqm[0], curve.low[0], curve.high[0]) == (0.5, 0.0, 1.0)
+
+
+def test_bootstrap_is_reproducible_and_leaves_numpys_global_generator_alone(tmp_path):
+    group = hand_group(tmp_path)
+    np.random.seed(7)
+    expected_next = np.random.random()
+    np.random.seed(7)
+    first = aggregate.iqm_curves(group, reps=300)
+    assert np.random.random() == expected_next
+    np.random.seed(99)  # a different global state must not change the intervals
+    second = aggregate.iqm_curves(group, reps=300)
+    for metric in aggregate.METRICS:
+        np.testing.assert_array_equal(first[metric].low, second[metric].low)
+        np.testing.assert_array_equal(first[metric].high, second[metric].high)
+    # the seed matters (on continuous values, where percentiles of different resamples differ)
+    rng = np.random.default_rng(0)
+    spread = hand_group(tmp_path, {s: list(rng.random(3)) for s in range(8)}, "spread")
+    one, other = (aggregate.iqm_curves(spread, ("success_p0",), reps=300, seed=s)["success_p0"] for s in (0, 1))
+    assert not np.array_equal(one.low, other.low)
+
+
+def test_steps_to_threshold_per_seed_and_never_reached_counted(tmp_path):
+    t = aggregate.steps_to_threshold(hand_group(tmp_path))
+    assert t.per_seed == {0: 3000, 1: 4000, 2: 2000, 3: math.inf}
+    assert t.reached == 3
+    assert t.median == 3500  # of 2000, 3000, 4000, never
+    assert t.iqm == 3500  # the middle two of four
+
+
+@pytest.mark.parametrize("firsts, median, iqm", [
+    ([1000, 2000, 2000, 4000, None], 2000, (2000 + 2000 + 4000) / 3),  # five seeds: one trimmed each side
+    ([1000, 3000, None, None], math.inf, math.inf),  # half never reached: no honest finite summary
+    ([None, None, None], math.inf, math.inf),
+])
+def test_steps_to_threshold_median_and_iqm(tmp_path, firsts, median, iqm):
+    seeds = {}
+    for seed, first in enumerate(firsts):
+        seeds[seed] = [1.0 if first is not None and step >= first else 0.5 for step in (1000, 2000, 3000, 4000)]
+    t = aggregate.steps_to_threshold(hand_group(tmp_path, seeds))
+    assert t.reached == sum(f is not None for f in firsts)
+    assert t.median == median
+    assert t.iqm == pytest.approx(iqm)
+
+
+def test_groups_by_config_not_by_directory_names_at_any_depth(tmp_path):
+    write_run(tmp_path / "a" / "deep" / "auxss-d500" / "seed0", method="hysac", seed=0)  # the name lies
+    write_run(tmp_path / "b" / "seed1", method="hysac", seed=1)
+    write_run(tmp_path / "c" / "seed0", method="auxss", seed=0, demos=7500)
+    write_run(tmp_path / "d" / "seed0", method="auxss", seed=0, strategy={"sigma": 0.2})
+    write_run(tmp_path / "d" / "seed1", method="auxss", seed=1, strategy={"sigma": 0.2})
+    write_run(tmp_path / "e" / "seed0", method="auxss", seed=0)
+    (tmp_path / "f").mkdir()
+    (tmp_path / "f" / "config.json").write_text("{}")  # no metrics.csv: not a run
+    groups = aggregate.group_runs(aggregate.find_runs(tmp_path))
+    labels = {g.label: g.seeds for g in groups}
+    assert labels == {"hysac (0.5K)": [0, 1], "auxss (7.5K)": [0],
+                      "auxss (0.5K) [strategy.sigma=0.2]": [0, 1], "auxss (0.5K) [strategy.sigma=default]": [0]}
+    # in the runner's method order (auxss before hysac), then demo set
+    assert [g.method for g in groups] == sorted((g.method for g in groups), key=METHODS.index)
+
+
+def test_curves_use_the_steps_every_seed_has_and_skip_missing_values(tmp_path):
+    write_run(tmp_path / "s0", seed=0, p0=[0.0, 0.5, 1.0], train=[0.1, float("nan"), 0.3])
+    write_run(tmp_path / "s1", seed=1, p0=[0.2, 0.6], train=[0.2, 0.4])  # still running: one evaluation fewer
+    [group] = aggregate.group_runs(aggregate.find_runs(tmp_path))
+    curves = aggregate.iqm_curves(group, reps=200)
+    np.testing.assert_array_equal(curves["success_p0"].steps, [1000, 2000])
+    np.testing.assert_allclose(curves["success_p0"].iqm, [0.1, 0.55])
+    assert curves["train_return"].iqm[0] == pytest.approx(0.15)
+    assert np.isnan(curves["train_return"].iqm[1]) and np.isnan(curves["train_return"].low[1])
+
+
+def test_find_runs_refuses_an_empty_tree_and_names_a_broken_config(tmp_path):
+    with pytest.raises(ValueError, match="holds no run directory"):
+        aggregate.find_runs(tmp_path)
+    write_run(tmp_path / "run", seed=0)
+    (tmp_path / "run" / "config.json").write_text("{not json")
+    with pytest.raises(ValueError, match=re.escape(str(tmp_path / "run" / "config.json"))):
+        aggregate.find_runs(tmp_path)
+
+
+# --- the report command ----------------------------------------------------------------------------
+def full_sweep(root, seeds=(0, 1, 2)):
+    """Every method at 0.5K and the demo-using ones at 7.5K too, laid out as a sweep writes them."""
+    for m, method in enumerate(METHODS):
+        for demos in (500, 7500) if method not in ("sac", "omega_ss", "uniform_ss", "goaldist_ss") else (500,):
+            for seed in seeds:
+                p0 = list(np.clip(np.linspace(0, 1, 5) * (0.4 + 0.06 * m) + 0.1 * seed, 0, 1))
+                write_run(root / f"{method}-d{demos}" / f"seed{seed}", method=method, seed=seed, demos=demos, p0=p0,
+                          train=None if method not in ("bc", "iql") else [float("nan")] * 5,
+                          weights=method == "auxss")
+
+
+FIGURES = ("benchmark", "demo_size", "start_distributions", "maze")
+
+
+def test_report_writes_every_figure_and_the_markdown(tmp_path, capsys):
+    sweep = tmp_path / "sweep"
+    full_sweep(sweep)
+    assert report.main([str(sweep), "--reps", "200"]) == 0
+    out = sweep / "report"
+    assert f"wrote {out / 'report.md'}" in capsys.readouterr().out
+    for name in FIGURES:
+        assert (out / f"{name}.pdf").stat().st_size > 5_000
+        image = imageio.imread(out / f"{name}.png")
+        assert image.shape[0] > 300 and image.shape[1] > 900
+        assert image[..., :3].std() > 10, f"{name}.png is blank"
+    text = (out / "report.md").read_text()
+    links = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text)
+    assert sorted(links) == sorted(f"{name}.png" for name in FIGURES)
+    assert all((out / link).is_file() for link in links)  # relative to report.md
+    assert "Skipped" not in text and "Not in this directory" not in text
+    for method in METHODS:
+        assert f"| {method} (0.5K) | 3 |" in text  # the last-evaluation table
+    assert "| hysac (7.5K) | 3 |" in text
+    # auxss is method index 1: p0 ramps to 0.46 + 0.1 * seed, so its IQM at the last step is the middle
+    # seed's (three seeds: 25% of 3 trims nothing, the IQM is the mean): (0.46 + 0.56 + 0.66) / 3 = 0.56
+    assert re.search(r"\| auxss \(0\.5K\) \| 3 \| 5,000 \| 0\.56 \[", text)
+    assert "| sac (0.5K) | 0 of 3 | not reached | not reached |" in text
+    assert "start weights" in text and "seed 0" in text
+
+
+def test_report_skips_figures_whose_methods_are_absent(tmp_path):
+    for seed in (0, 1):
+        write_run(tmp_path / "sac" / f"seed{seed}", method="sac", seed=seed, p0=[0.0, 0.0, 0.1])
+        write_run(tmp_path / "bc" / f"seed{seed}", method="bc", seed=seed, p0=[0.9, 1.0, 1.0])
+    out = tmp_path / "figures"
+    assert report.main([str(tmp_path), "--out", str(out), "--reps", "100"]) == 0
+    text = (out / "report.md").read_text()
+    assert "*Skipped: no method has runs with both 0.5K and 7.5K demo transitions.*" in text
+    assert "*Skipped: none of auxss, omega_ss, uniform_ss, goaldist_ss has runs here.*" in text
+    assert "Not in this directory: auxss, omega_ss" in text  # in the benchmark figure's note
+    assert "No AuxSS run with start_weights.npz" in text
+    assert (out / "benchmark.png").is_file() and (out / "maze.png").is_file()
+    assert not (out / "demo_size.png").exists() and not (out / "start_distributions.png").exists()
+
+
+@pytest.mark.parametrize("case", ["missing", "empty", "broken"])
+def test_report_refuses_bad_input_with_one_line_and_exit_2(tmp_path, capsys, case):
+    target = tmp_path / "sweep"
+    if case != "missing":
+        target.mkdir()
+    if case == "broken":
+        write_run(target / "seed0")
+        (target / "seed0" / "metrics.csv").write_text("step,success_p0\n1000,not-a-number\n")
+    assert report.main([str(target)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("lava-bridge-bench report: error:")
+    assert str(target) in err
+    assert not (target / "report").exists()
+
+
+def test_cli_dispatches_report_and_its_help_names_the_subcommands(tmp_path, capsys):
+    write_run(tmp_path / "run", method="sac")
+    assert cli.main(["report", str(tmp_path), "--reps", "50"]) == 0
+    assert (tmp_path / "report" / "report.md").is_file()
+    with pytest.raises(SystemExit):
+        cli.main(["--help"])
+    help_text = " ".join(capsys.readouterr().out.split())  # unwrapped
+    for name in ("report", "video"):
+        assert re.search(r"lava-bridge-bench \{[a-z,]*\b%s\b[a-z,]*\}" % name, help_text), help_text
+    result = subprocess.run([sys.executable, "-m", "lava_bridge_mj.eval.report", "--help"],
+                            capture_output=True, text=True)
+    assert result.returncode == 0 and "--out" in result.stdout
