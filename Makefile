@@ -17,7 +17,7 @@ run: setup
 	$(BIN)/python -m lava_bridge_mj.eval.summary runs/auxss
 
 expert-video: setup
-	$(BIN)/python -m lava_bridge_mj.eval.video --out runs/expert.mp4
+	$(BIN)/python -m lava_bridge_mj.eval.video --expert --out runs/expert.mp4
 
 test: setup
 	$(BIN)/python -m pytest

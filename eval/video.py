@@ -1,13 +1,28 @@
 """Off-screen rollout videos: the maze from above, the ball, its trail and its start marked.
 
+    lava-bridge-bench video runs/auxss/seed0                     # the final policy -> RUN_DIR/rollouts.mp4
+    lava-bridge-bench video runs/auxss/seed0 --policy step_20000 --episodes 3 --out early.mp4
+    python -m lava_bridge_mj.eval.video --expert --out runs/expert.mp4   # the scripted expert
+
+A run's policy is rebuilt from its config.json (the method's actor and its sizes) and its weights:
+`--policy final` reads final.pt, or the latest checkpoint.pt of a run still training; `--policy
+step_N` reads the snapshot policies/step_N.pt. It acts deterministically (the Gaussian's mean, as in
+evaluation), in the run's own env settings, from p0 and then from ood, `--episodes` episodes each,
+episode i starting from `reset(seed=SEED + i)`. A run directory that is missing, lacks config.json or
+lacks the chosen policy is refused with one error line and exit code 2, before anything is written.
+
 Rendering goes through the env's `render_mode="rgb_array"` (mujoco.Renderer, EGL or OSMesa);
 the trail and the start marker are extra geoms added to the scene before each frame is drawn.
 """
 
 from __future__ import annotations
 
+import argparse
+import json
+import re
+import sys
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 import imageio.v2 as imageio
 import mujoco
@@ -71,31 +86,115 @@ def record_rollouts(env, policy: Callable[[np.ndarray], np.ndarray], path: str |
     return successes
 
 
-def main(argv: list[str] | None = None) -> None:
-    import argparse
+POLICY_SPEC = re.compile(r"final|step_(\d+)")
 
+
+Policy = Callable[[np.ndarray], np.ndarray]
+"""An observation (4,) -> an action (2,)."""
+
+
+def load_policy(run_dir: str | Path, policy: str = "final") -> tuple[Policy, Any, str]:
+    """The deterministic policy of the run in `run_dir`: `policy` is "final" or "step_N".
+
+    Returns (obs (4,) -> action (2,), the run's RunConfig, a description of what was loaded). ValueError with a one-line reason when the directory, its config or the policy is
+    missing or unreadable."""
+    import torch
+
+    from lava_bridge_mj.eval.runner import RunConfig, make_agent
+
+    run_dir = Path(run_dir)
+    spec = POLICY_SPEC.fullmatch(policy)
+    if spec is None:
+        raise ValueError(f"--policy must be final or step_N (e.g. step_5000), got {policy!r}")
+    if not run_dir.is_dir():
+        raise ValueError(f"{run_dir} is not a directory")
+    config_file = run_dir / "config.json"
+    if not config_file.is_file():
+        raise ValueError(f"{run_dir} holds no config.json: not a run directory")
+    try:
+        config = RunConfig.from_dict(json.loads(config_file.read_text()), source=str(config_file))
+    except ValueError as error:  # invalid JSON, unknown or bad fields
+        raise ValueError(f"{config_file} is not a usable run configuration: {error}") from None
+    snapshot = spec.group(1) is not None  # policies/step_N.pt holds the actor's weights alone
+    if snapshot:
+        path = run_dir / "policies" / f"{policy}.pt"
+        if not path.is_file():
+            found = sorted(int(m.group(1)) for f in (run_dir / "policies").glob("step_*.pt")
+                           if (m := POLICY_SPEC.fullmatch(f.stem)) and m.group(1))
+            raise ValueError(f"{run_dir} has no policy snapshot {path.name}; available steps: "
+                             f"{', '.join(map(str, found)) or 'none'}")
+    else:
+        path = next((run_dir / name for name in ("final.pt", "checkpoint.pt") if (run_dir / name).is_file()), None)
+        if path is None:
+            raise ValueError(f"{run_dir} holds neither final.pt nor checkpoint.pt: the run has not checkpointed yet")
+    try:
+        state = torch.load(path, weights_only=snapshot)  # a checkpoint also holds RNG states and more
+        actor = state if snapshot else state["agent"]["actor"]
+        agent = make_agent(config, [config.seed])
+        agent.actor.load_state_dict(actor)
+    except Exception as error:  # a foreign or damaged file fails in many ways
+        raise ValueError(f"cannot load the actor from {path} ({type(error).__name__}: {error})") from None
+    step = spec.group(1) if snapshot else state.get("step")
+    described = f"{config.method} seed {config.seed}, {path.name}" + (f" (step {step})" if step is not None else "")
+
+    def act(obs: np.ndarray) -> np.ndarray:
+        return agent.act(np.asarray(obs, dtype=np.float32)[None], deterministic=True)[0]
+    return act, config, described
+
+
+def main(argv: list[str] | None = None) -> int:
     import gymnasium
 
     import lava_bridge_mj
 
-    parser = argparse.ArgumentParser(description="Write an mp4 of scripted-expert rollouts from p0 and ood.")
-    parser.add_argument("--out", default="runs/expert.mp4", help="video file to write (default: %(default)s)")
-    parser.add_argument("--episodes", type=int, default=2, help="episodes per start distribution")
-    parser.add_argument("--seed", type=int, default=0)
+    parser = argparse.ArgumentParser(
+        prog="lava-bridge-bench video",
+        description="Render a trained run's policy (or the scripted expert) from p0 and from ood into one mp4, "
+                    "off screen, with the ball's trail and its start marked.")
+    parser.add_argument("run_dir", nargs="?", type=Path, help="run directory (holding config.json and final.pt, "
+                        "checkpoint.pt or policies/)")
+    parser.add_argument("--expert", action="store_true", help="record the scripted expert instead of a run")
+    parser.add_argument("--policy", default="final", help="final (final.pt, or the latest checkpoint.pt of an "
+                        "unfinished run) or step_N (policies/step_N.pt) (default: %(default)s)")
+    parser.add_argument("--episodes", type=int, default=2,
+                        help="episodes per start distribution (default: %(default)s)")
+    parser.add_argument("--max-steps", type=int, default=lava_bridge_mj.MAX_EPISODE_STEPS,
+                        help="cut each episode after this many steps (default: %(default)s, the env's limit)")
+    parser.add_argument("--seed", type=int, default=0, help="episode i starts from reset(seed=SEED + i)")
+    parser.add_argument("--out", type=Path, default=None, help="video file to write (default: RUN_DIR/rollouts.mp4, "
+                        "RUN_DIR/rollouts_step_N.mp4 for --policy step_N, runs/expert.mp4 with --expert)")
     parser.add_argument("--still", default=None, help="also write the last frame as a PNG here")
     args = parser.parse_args(argv)
-    if args.episodes < 1:
-        parser.error(f"--episodes must be >= 1, got {args.episodes}")
-    env = gymnasium.make(lava_bridge_mj.ENV_ID, render_mode="rgb_array")
-    expert = lava_bridge_mj.ScriptedExpert(env)
+    if args.expert == (args.run_dir is not None):
+        parser.error("give either RUN_DIR or --expert")
+    for name in ("episodes", "max_steps"):
+        if getattr(args, name) < 1:
+            parser.error(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
+    env_kwargs: dict = {}
+    if args.expert:
+        out = args.out or Path("runs/expert.mp4")
+        policy, what = None, "expert"
+    else:
+        try:
+            policy, config, what = load_policy(args.run_dir, args.policy)
+        except ValueError as error:
+            print(f"lava-bridge-bench video: error: {error}", file=sys.stderr)
+            return 2
+        env_kwargs = config.env
+        name = "rollouts.mp4" if args.policy == "final" else f"rollouts_{args.policy}.mp4"
+        out = args.out or args.run_dir / name
+    env = gymnasium.make(lava_bridge_mj.ENV_ID, render_mode="rgb_array", max_episode_steps=args.max_steps,
+                         **env_kwargs)
     try:
-        successes = record_rollouts(env, expert.act, args.out, episodes_per_start=args.episodes,
-                                    seed=args.seed, still=args.still)
+        policy = policy or lava_bridge_mj.ScriptedExpert(env).act
+        successes = record_rollouts(env, policy, out, episodes_per_start=args.episodes, seed=args.seed,
+                                    still=args.still)
     finally:
         env.close()
     summary = ", ".join(f"{start} {n}/{args.episodes}" for start, n in successes.items())
-    print(f"wrote {args.out}: expert successes {summary}")
+    print(f"wrote {out}: {what}; successes {summary}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -64,3 +64,127 @@ def test_cli_video_flag_records_the_trained_policy(tmp_path, monkeypatch):
                      "--out", str(tmp_path), "--no-progress", "--video"])
     assert code == 0
     assert calls == [tmp_path / "rollouts.mp4"]
+
+
+# --- `lava-bridge-bench video RUN_DIR`: a trained run's policy -----------------------------------------
+MAX_STEPS = 25
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    """A real SAC run of 300 steps (updates from step 100, snapshots at 150 and 300) and its Run."""
+    import torch
+
+    from lava_bridge_mj.agents.sac import SACConfig
+    from lava_bridge_mj.eval.runner import RunConfig, train
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    run_dir = tmp_path_factory.mktemp("tiny") / "sac" / "seed3"
+    config = RunConfig(method="sac", seed=3, steps=300, eval_every=150, eval_episodes=1,
+                       sac=SACConfig(hidden_sizes=(16, 16), batch_size=32, learning_starts=100))
+    try:
+        run = train(config, run_dir, progress=False)
+    finally:
+        torch.set_num_threads(threads)
+    return run_dir, run
+
+
+def episode_lengths(policy, starts=("p0", "ood"), episodes=1, seed=0, max_steps=MAX_STEPS):
+    """How many steps each episode of `policy` lasts under the video's time limit, counted independently."""
+    env = gymnasium.make(lava_bridge_mj.ENV_ID, max_episode_steps=max_steps)
+    lengths = []
+    for start in starts:
+        for episode in range(episodes):
+            obs, _ = env.reset(seed=seed + episode, options={"start": start})
+            steps, done = 0, False
+            while not done:
+                obs, _, terminated, truncated, _ = env.step(policy(obs))
+                steps, done = steps + 1, terminated or truncated
+            lengths.append(steps)
+    env.close()
+    return lengths
+
+
+def test_video_of_a_run_decodes_with_one_frame_per_step_and_start(tiny_run, tmp_path, capsys):
+    run_dir, run = tiny_run
+    out = tmp_path / "clips" / "final.mp4"
+    assert cli.main(["video", str(run_dir), "--episodes", "1", "--max-steps", str(MAX_STEPS), "--out", str(out)]) == 0
+    assert "sac seed 3, final.pt (step 300)" in capsys.readouterr().out
+    with imageio.get_reader(out) as reader:
+        frames = [frame for frame in reader]
+    lengths = episode_lengths(run.policy(0))  # the trainer's own policy, not the video's reloaded one
+    assert len(frames) == sum(length + 1 for length in lengths)
+    assert frames[0].shape == (400, 960, 3)  # the env's default render size
+    assert not list(out.parent.glob("*partial*"))
+
+
+def test_reloaded_policies_match_the_trainer_and_the_snapshots(tiny_run):
+    from lava_bridge_mj.eval.video import load_policy
+
+    run_dir, run = tiny_run
+    obs = np.random.default_rng(0).uniform(-2, 2, (20, 4))
+    trained = np.stack([run.policy(0)(o) for o in obs])  # one at a time, as in a rollout (same kernels)
+    final, config, _ = load_policy(run_dir, "final")
+    assert config.seed == 3 and config.sac.hidden_sizes == (16, 16)
+    np.testing.assert_array_equal(np.stack([final(o) for o in obs]), trained)
+    last, _, _ = load_policy(run_dir, "step_300")
+    np.testing.assert_array_equal(np.stack([last(o) for o in obs]), trained)
+    earlier, _, _ = load_policy(run_dir, "step_150")
+    assert not np.allclose(np.stack([earlier(o) for o in obs]), trained)  # 150 updates later it acts otherwise
+
+
+def test_video_of_a_snapshot_defaults_to_a_file_in_the_run(tiny_run, tmp_path):
+    import shutil
+
+    from lava_bridge_mj.eval import video
+
+    run_dir = tmp_path / "copy"
+    shutil.copytree(tiny_run[0], run_dir)
+    assert video.main([str(run_dir), "--policy", "step_150", "--episodes", "2", "--max-steps", "6", "--seed", "5"]) == 0
+    with imageio.get_reader(run_dir / "rollouts_step_150.mp4") as reader:
+        frames = len([frame for frame in reader])
+    lengths = episode_lengths(video.load_policy(run_dir, "step_150")[0], episodes=2, seed=5, max_steps=6)
+    assert frames == sum(length + 1 for length in lengths)
+
+
+@pytest.mark.parametrize("case, message", [
+    ("missing", "is not a directory"),
+    ("no config", "holds no config.json"),
+    ("bad config", "is not a usable run configuration"),
+    ("no policy", "holds neither final.pt nor checkpoint.pt"),
+    ("no snapshot", "has no policy snapshot step_999.pt; available steps: 150, 300"),
+    ("bad spec", "--policy must be final or step_N"),
+])
+def test_video_refuses_bad_runs_with_one_line_and_exit_2(tiny_run, tmp_path, capsys, case, message):
+    import shutil
+
+    from lava_bridge_mj.eval import video
+
+    run_dir = tmp_path / "run"
+    policy = {"no snapshot": "step_999", "bad spec": "best"}.get(case, "final")
+    if case != "missing":
+        shutil.copytree(tiny_run[0], run_dir)
+    if case == "no config":
+        (run_dir / "config.json").unlink()
+    if case == "bad config":
+        (run_dir / "config.json").write_text('{"method": "sac", "learning_rate": 1}')
+    if case == "no policy":
+        for name in ("final.pt", "checkpoint.pt"):
+            (run_dir / name).unlink()
+    before = sorted(p.name for p in tmp_path.rglob("*"))
+    out = tmp_path / "out.mp4"
+    assert video.main([str(run_dir), "--policy", policy, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("lava-bridge-bench video: error:")
+    assert message in err
+    assert sorted(p.name for p in tmp_path.rglob("*")) == before  # nothing written
+
+
+def test_expert_video_through_the_command(tmp_path):
+    from lava_bridge_mj.eval import video
+
+    out = tmp_path / "expert.mp4"
+    assert video.main(["--expert", "--episodes", "1", "--max-steps", "4", "--out", str(out)]) == 0
+    with imageio.get_reader(out) as reader:
+        assert len([frame for frame in reader]) == 2 * (4 + 1)  # the expert needs far more than 4 steps
