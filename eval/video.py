@@ -96,8 +96,8 @@ Policy = Callable[[np.ndarray], np.ndarray]
 def load_policy(run_dir: str | Path, policy: str = "final") -> tuple[Policy, Any, str]:
     """The deterministic policy of the run in `run_dir`: `policy` is "final" or "step_N".
 
-    Returns (obs (4,) -> action (2,), the run's RunConfig, a description of what was loaded). ValueError with a one-line reason when the directory, its config or the policy is
-    missing or unreadable."""
+    Returns (the policy, the run's RunConfig, a description of what was loaded). ValueError with a
+    one-line reason when the directory, its config or the policy is missing or unreadable."""
     import torch
 
     from lava_bridge_mj.eval.runner import RunConfig, make_agent
