@@ -70,7 +70,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "Ctrl-C (or SIGTERM) stops after writing a checkpoint; --resume continues.",
         epilog=f"Subcommands, named first: lava-bridge-bench {{{','.join(SUBCOMMANDS)}}} ...; "
                "`lava-bridge-bench NAME --help` describes each (report: figures and tables from a directory "
-               "of runs; video: an mp4 of a run's policy from p0 and ood).")
+               "of runs; video: an mp4 of a run's policy from p0 and ood; sweep: every method x demo set x "
+               "seed, as batched jobs on local worker processes or Ray).")
     parser.add_argument("--method", required=True, choices=METHODS,
                         help="sac: plain SAC from p0; auxss: the paper's episode-length start-state "
                              "safety; omega_ss: random-policy Monte-Carlo safety; uniform_ss: uniform "
