@@ -1,4 +1,10 @@
-"""StartStateWrapper: start each episode from a start strategy's choice and report how it went."""
+"""Start each episode from a start strategy's choice and report back how it went.
+
+`StartSelector` is the bookkeeping for one env: it draws the start index with its own generator,
+counts the episode's steps and reports the finished episode to the strategy exactly once.
+`StartStateWrapper` puts it around any gymnasium env; the batched trainer (eval/runner.py) keeps
+one selector per sub-env of a `LavaBridgeVectorEnv`. Both give the same starts and reports.
+"""
 
 from __future__ import annotations
 
@@ -14,6 +20,55 @@ def _start_rng(seed: int | None) -> np.random.Generator:
     # A child of the seed's SeedSequence: gymnasium seeds the env's np_random from the same seed,
     # and the child stream is independent of it rather than a copy.
     return np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
+
+
+class StartSelector:
+    """One env's start choices from `strategy`, and the reports of the episodes they started.
+
+    `choose()` draws an index with the selector's generator and returns the state to reset to, or
+    None for the env's own reset (the strategy returned `NO_STATE`, p0). `step(ended, success)` counts
+    one env step; when the episode ends, the strategy gets `update(index, length, success=...)`,
+    once. `external_start()` marks an episode the strategy did not choose: it is not reported.
+    """
+
+    def __init__(self, strategy: StartStrategy, seed: int | None = None):
+        self.strategy = strategy
+        self._rng = _start_rng(seed)
+        self.start_index = NO_STATE
+        self.episode_length = 0
+        self._report_pending = False  # an episode the strategy chose is running and not yet reported
+
+    def reseed(self, seed: int) -> None:
+        self._rng = _start_rng(seed)
+
+    def choose(self) -> np.ndarray | None:
+        """Start a new episode: the candidate state to reset to, or None for the env's own start."""
+        self.episode_length = 0
+        self.start_index, self._report_pending = self.strategy.sample(self._rng), True
+        return None if self.start_index == NO_STATE else self.strategy.states[self.start_index].copy()
+
+    def external_start(self) -> None:
+        """Start a new episode whose start the strategy did not choose."""
+        self.episode_length = 0
+        self.start_index, self._report_pending = NO_STATE, False
+
+    def step(self, ended: bool, success: bool) -> None:
+        self.episode_length += 1
+        if ended and self._report_pending:
+            self._report_pending = False  # exactly once, even if stepped past the end
+            self.strategy.update(self.start_index, self.episode_length, success=bool(success))
+
+    def state_dict(self) -> dict[str, Any]:
+        """The generator, the current episode and the strategy's learned state, for a resume."""
+        return {"rng": self._rng.bit_generator.state, "strategy": self.strategy.state_dict(),
+                "start_index": self.start_index, "episode_length": self.episode_length,
+                "report_pending": self._report_pending}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self._rng.bit_generator.state = state["rng"]
+        self.strategy.load_state_dict(state["strategy"])
+        self.start_index, self.episode_length = state["start_index"], state["episode_length"]
+        self._report_pending = state["report_pending"]
 
 
 class StartStateWrapper(gymnasium.Wrapper):
@@ -37,46 +92,39 @@ class StartStateWrapper(gymnasium.Wrapper):
 
     def __init__(self, env: gymnasium.Env, strategy: StartStrategy, seed: int | None = None):
         super().__init__(env)
-        self.strategy = strategy
-        self._rng = _start_rng(seed)
-        self.start_index = NO_STATE
-        self.episode_length = 0
-        self._report_pending = False  # an episode the strategy chose is running and not yet reported
+        self.selector = StartSelector(strategy, seed)
+
+    @property
+    def strategy(self) -> StartStrategy:
+        return self.selector.strategy
+
+    @property
+    def start_index(self) -> int:
+        return self.selector.start_index
+
+    @property
+    def episode_length(self) -> int:
+        return self.selector.episode_length
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         if seed is not None:
-            self._rng = _start_rng(seed)
-        self.episode_length = 0
+            self.selector.reseed(seed)
         if options:
-            self.start_index, self._report_pending = NO_STATE, False
+            self.selector.external_start()
             obs, info = self.env.reset(seed=seed, options=options)
         else:
-            self.start_index, self._report_pending = self.strategy.sample(self._rng), True
-            if self.start_index == NO_STATE:
-                obs, info = self.env.reset(seed=seed)
-            else:
-                state = self.strategy.states[self.start_index].copy()
-                obs, info = self.env.reset(seed=seed, options={"state": state})
-        info["start_index"] = self.start_index
+            state = self.selector.choose()
+            obs, info = self.env.reset(seed=seed, options=None if state is None else {"state": state})
+        info["start_index"] = self.selector.start_index
         return obs, info
 
     def state_dict(self) -> dict[str, Any]:
-        """The wrapper's generator, current episode and its strategy's learned state, for a resume."""
-        return {"rng": self._rng.bit_generator.state, "strategy": self.strategy.state_dict(),
-                "start_index": self.start_index, "episode_length": self.episode_length,
-                "report_pending": self._report_pending}
+        return self.selector.state_dict()
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        self._rng.bit_generator.state = state["rng"]
-        self.strategy.load_state_dict(state["strategy"])
-        self.start_index, self.episode_length = state["start_index"], state["episode_length"]
-        self._report_pending = state["report_pending"]
+        self.selector.load_state_dict(state)
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         obs, reward, terminated, truncated, info = self.env.step(action)
-        self.episode_length += 1
-        if (terminated or truncated) and self._report_pending:
-            self._report_pending = False  # exactly once, even if stepped past the end
-            self.strategy.update(self.start_index, self.episode_length,
-                                 success=bool(info.get("is_success", False)))
+        self.selector.step(terminated or truncated, info.get("is_success", False))
         return obs, reward, terminated, truncated, info

@@ -11,8 +11,9 @@ A run directory holds:
 Every file is replaced atomically, so an interrupted run never leaves a half-written one.
 
 K seeds of one configuration train together in one process (`train(config, dirs, seeds=...)`): one
-`SAC` with stacked networks updates all of them in one batched step, each seed with its own env,
-start strategy, replay buffer, RNGs and directory. A seed's files are the same as if it had trained
+`SAC` with stacked networks updates all of them in one batched step, and one `LavaBridgeVectorEnv`
+steps their episodes (sub-env i is seed i's, reset to the starts its strategy chooses), each seed with
+its own start strategy, replay buffer, RNGs and directory. A seed's files are the same as if it had trained
 alone (tests/test_runner.py checks it), and its checkpoint holds only its own state, so it can be
 resumed alone or in another batch. The seeds of a batch checkpoint together after each evaluation,
 mid-episode (the physics state (qpos, qvel) and the episode's step count are saved, and restoring
@@ -37,7 +38,6 @@ from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
-import gymnasium
 import numpy as np
 import torch
 from tqdm.auto import tqdm
@@ -49,10 +49,11 @@ from lava_bridge_mj.agents.jsrl import JSRLConfig, JSRLCurriculum
 from lava_bridge_mj.agents.offline import BC, IQL, BCConfig, IQLConfig
 from lava_bridge_mj.agents.sac import SAC, SACConfig
 from lava_bridge_mj.agents.seed_batch import stack_batches
-from lava_bridge_mj.agents.start_state_wrapper import StartStateWrapper
+from lava_bridge_mj.agents.start_state_wrapper import StartSelector
 from lava_bridge_mj.agents.start_strategies import STRATEGY_PARAMS, make_start_strategy
 from lava_bridge_mj.eval.atomic import atomic_write, atomic_write_text
 from lava_bridge_mj.eval.evaluate import evaluate
+from lava_bridge_mj.vector import LavaBridgeVectorEnv
 
 METHOD_STRATEGIES = {
     "sac": "p0",
@@ -238,16 +239,17 @@ def make_strategy(config: RunConfig, states: np.ndarray, probe: lava_bridge_mj.L
 
 
 class SeedRun:
-    """One seed's part of a training batch: its env, start strategy, replay buffer, RNGs, metrics
-    and run directory. `Run` steps all of its seeds in lockstep."""
+    """One seed's part of a training batch: its sub-env of the batch's vector env, its start
+    strategy, replay buffer, RNGs, metrics and run directory. `Run` steps all of its seeds in lockstep."""
 
     def __init__(self, config: RunConfig, out_dir: str | Path, probe: lava_bridge_mj.LavaBridgeEnv,
-                 offline: ReplayBuffer | None = None):
+                 envs: LavaBridgeVectorEnv, index: int, offline: ReplayBuffer | None = None):
         self.config, self.dir = config, Path(out_dir)
         seed = config.seed
         self.states = candidate_states(config)
         self.strategy = make_strategy(config, self.states, probe)
-        self.env = StartStateWrapper(gymnasium.make(lava_bridge_mj.ENV_ID, **config.env), self.strategy, seed=seed)
+        self.envs, self.index = envs, index  # this seed's env is sub-env `index` of the batch's `envs`
+        self.selector = StartSelector(self.strategy, seed)
         self.buffer = ReplayBuffer(config.sac.buffer_size, 4, 2)
         self.offline = offline  # the demo transitions (HySAC, JSRL's guide, BC, IQL), shared read-only by the batch
         self.curriculum = JSRLCurriculum(config.jsrl) if config.method == "jsrl" else None
@@ -258,21 +260,24 @@ class SeedRun:
         self.weight_history: list[np.ndarray] = []
         self.recent: list[tuple[float, bool]] = []  # (return, success) of training episodes since the last eval
         self.last_update: dict[str, float] = {}
-        self.obs, _ = self.env.reset(seed=seed)
+        self.obs: np.ndarray | None = None  # set by Run's first reset
 
-    def step(self, action: np.ndarray) -> None:
-        """One env step with `action`: store the transition, reset when the episode ends."""
-        next_obs, reward, terminated, truncated, info = self.env.step(action)
+    def observe(self, action: np.ndarray, reward: float, next_obs: np.ndarray, terminated: bool,
+                truncated: bool, success: bool) -> bool:
+        """Store one env step's transition; True when the episode ended (the Run then resets this
+        seed's env to a start its strategy chooses)."""
         self.buffer.add(self.obs, action, reward, next_obs, terminated)
         self.episode_return += reward
         self.obs = next_obs
-        if terminated or truncated:
+        ended = terminated or truncated
+        self.selector.step(ended, success)
+        if ended:
             self.episodes += 1
-            self.recent.append((self.episode_return, bool(info["is_success"])))
+            self.recent.append((self.episode_return, bool(success)))
             if self.curriculum is not None:
-                self.curriculum.record(info["is_success"])
+                self.curriculum.record(success)
             self.episode_return = 0.0
-            self.obs, _ = self.env.reset()
+        return ended
 
     def sample(self) -> dict[str, torch.Tensor]:
         """A minibatch for this seed's update: online transitions, plus demo ones for HySAC; demo
@@ -326,7 +331,7 @@ class SeedRun:
     def state(self, step: int, elapsed: float, agent: dict) -> dict:
         """This seed's checkpoint at `step`, mid-episode: the physics state and the episode's step
         count make the env continue exactly where it was."""
-        base = self.env.unwrapped
+        envs, i = self.envs, self.index
         return {
             "version": CHECKPOINT_VERSION,
             "config": self.config.to_dict(),
@@ -335,11 +340,11 @@ class SeedRun:
             "recent": self.recent, "last_update": self.last_update,
             "agent": agent,
             "buffer": self.buffer.state_dict(),
-            "wrapper": self.env.state_dict(),
+            "wrapper": self.selector.state_dict(),
             "rng": self.rng.bit_generator.state,
-            "env_rng": base.np_random.bit_generator.state,
-            "physics": base.get_state(),
-            "elapsed_steps": self.env.get_wrapper_attr("_elapsed_steps"),  # gymnasium's TimeLimit count
+            "env_rng": envs.rngs[i].bit_generator.state,
+            "physics": envs.get_state()[i],
+            "elapsed_steps": int(envs.episode_steps[i]),  # steps into the episode, for the time limit
             "obs": self.obs, "episode_return": self.episode_return,
             "curriculum": self.curriculum.state_dict() if self.curriculum is not None else None,
         }
@@ -359,13 +364,15 @@ class SeedRun:
         self.rows, self.weight_history = state["rows"], state["weight_history"]
         self.recent, self.last_update = state["recent"], state["last_update"]
         self.buffer.load_state_dict(state["buffer"])
-        base = self.env.unwrapped
-        qpos, qvel = state["physics"][:2], state["physics"][2:]
-        self.env.reset(options={"qpos": qpos, "qvel": qvel})  # through the wrappers, so each is mid-episode
-        self.env.load_state_dict(state["wrapper"])
-        self.env.set_wrapper_attr("_elapsed_steps", state["elapsed_steps"])
+        envs, i = self.envs, self.index
+        mask = np.arange(envs.num_envs) == i
+        physics = np.zeros((envs.num_envs, 4))
+        physics[i] = state["physics"]
+        envs.reset(options={"state": physics, "reset_mask": mask})  # this sub-env only, mid-episode
+        envs.episode_steps[i] = state["elapsed_steps"]
+        envs.rngs[i].bit_generator.state = state["env_rng"]
+        self.selector.load_state_dict(state["wrapper"])
         self.rng.bit_generator.state = state["rng"]
-        base.np_random.bit_generator.state = state["env_rng"]
         self.obs, self.episode_return = state["obs"], state["episode_return"]
         if self.curriculum is not None:
             self.curriculum.load_state_dict(state["curriculum"])
@@ -395,7 +402,11 @@ class Run:
         # the seeds share the config's demo set; the buffer is never written, so one copy serves all
         uses_demos = self.config.method in (*HYBRID_METHODS, *OFFLINE_METHODS, "jsrl")
         demos = demo_buffer(self.config) if uses_demos else None
-        self.seed_runs = [SeedRun(c, d, probe=self.eval_envs[0], offline=demos) for c, d in zip(configs, out_dirs)]
+        # one vector env steps every seed's episode: sub-env i is seed i's, seeded with that seed
+        self.envs = LavaBridgeVectorEnv(len(configs), **self.config.env)
+        self.seed_runs = [SeedRun(c, d, probe=self.eval_envs[0], envs=self.envs, index=i, offline=demos)
+                          for i, (c, d) in enumerate(zip(configs, out_dirs))]
+        self._start_episodes(np.ones(len(configs), dtype=bool), seeds=seeds)
         self.agent = make_agent(self.config, seeds)
         # JSRL's guide: an offline learner trained on the demos before the first online step
         self.guide = make_agent(dataclasses.replace(self.config, method=self.config.jsrl.guide), seeds) \
@@ -459,12 +470,17 @@ class Run:
                 else:
                     actions = self.agent.act(np.stack([s.obs for s in seed_runs]))
                 if self.guide is not None:  # JSRL: the guide acts for the first h steps of each episode
-                    guided = [s.env.episode_length < s.curriculum.horizon for s in seed_runs]
+                    guided = [s.selector.episode_length < s.curriculum.horizon for s in seed_runs]
                     if any(guided):
                         guide_actions = self.guide.act(np.stack([s.obs for s in seed_runs]), deterministic=True)
                         actions = [g if use else a for use, g, a in zip(guided, guide_actions, actions)]
-                for seed_run, action in zip(seed_runs, actions):
-                    seed_run.step(action)
+                actions = np.asarray(actions, dtype=np.float32)
+                next_obs, rewards, terminated, truncated, info = self.envs.step(actions)
+                ended = np.array([s.observe(a, r, o, term, trunc, success) for s, a, r, o, term, trunc, success
+                                  in zip(seed_runs, actions, rewards, next_obs, terminated, truncated,
+                                         info["is_success"])])
+                if ended.any():
+                    self._start_episodes(ended)
             self.step += 1
             if self.step >= learning_starts:
                 stats = self.agent.update(stack_batches([s.sample() for s in seed_runs]))
@@ -488,6 +504,22 @@ class Run:
         bar.close()
         self.elapsed = time.perf_counter() - start_time
         self.save("final.pt")
+
+    def _start_episodes(self, mask: np.ndarray, seeds: Sequence[int] | None = None) -> None:
+        """Reset the sub-envs in `mask` to the starts their seeds' strategies choose (a candidate
+        state, or the env's own p0 start); `seeds` (one per sub-env) reseeds their env RNGs first."""
+        starts = [s.selector.choose() if m else None for s, m in zip(self.seed_runs, mask)]
+        from_state = np.array([m and start is not None for m, start in zip(mask, starts)])
+        seed_list = list(seeds) if seeds is not None else None
+        obs = None
+        if from_state.any():
+            states = np.stack([start if start is not None else np.zeros(4) for start in starts])
+            obs, _ = self.envs.reset(seed=seed_list, options={"state": states, "reset_mask": from_state})
+        if (mask & ~from_state).any():
+            obs, _ = self.envs.reset(seed=seed_list, options={"reset_mask": mask & ~from_state})
+        for seed_run, m, o in zip(self.seed_runs, mask, obs):
+            if m:
+                seed_run.obs = o
 
     def _train_guide(self) -> None:
         """JSRL: fit the guide (BC or IQL) to the demo transitions, each seed with its own sampling stream."""

@@ -59,8 +59,9 @@ def test_the_guide_acts_for_exactly_h_steps_then_the_learner(tmp_path, monkeypat
     monkeypatch.setattr(run.agent, "act", lambda obs, deterministic=False: np.full((*obs.shape[:-1], 2), -0.25))
     run.guide_trained = True
     taken = []
-    original_step = seed_run.step
-    monkeypatch.setattr(seed_run, "step", lambda action: (taken.append(np.array(action)), original_step(action)))
+    original_observe = seed_run.observe
+    monkeypatch.setattr(seed_run, "observe", lambda action, *rest: (taken.append(np.array(action)),
+                                                                    original_observe(action, *rest))[1])
     monkeypatch.setattr(run.config.sac, "learning_starts", 0)
     run.config.steps = 25
     run._train(progress=False)
