@@ -478,7 +478,10 @@ def main(argv: list[str] | None = None) -> int:
             workers = args.workers or _local_cpus()
             ray.init(num_cpus=workers * args.threads, include_dashboard=False, runtime_env=env)
         else:
-            ray.init(address=args.address, runtime_env=env)
+            try:
+                ray.init(address=args.address, runtime_env=env)
+            except Exception as error:  # noqa: BLE001 - ConnectionError, a bad address, a version mismatch, ...
+                parser.error(f"--address {args.address}: cannot connect to Ray ({type(error).__name__}: {error})")
             workers = args.workers or max(1, int(ray.cluster_resources().get("CPU", 1) // args.threads))
     else:
         workers = args.workers or _local_cpus()
