@@ -54,13 +54,32 @@ class StackedLinear(nn.Module):
         return torch.baddbmm(self.bias, x, self.weight)
 
 
-class MLP(nn.Sequential):
-    """StackedLinear -> ReLU, once per hidden size, then a StackedLinear output layer."""
+class StackedLayerNorm(nn.Module):
+    """`members` independent LayerNorms over the last axis: y_i = normalise(x_i) * weight_i + bias_i,
+    the affine parameters starting at 1 and 0 as nn.LayerNorm's."""
 
-    def __init__(self, members: int, in_dim: int, out_dim: int, hidden_sizes: Sequence[int] = (256, 256)):
+    def __init__(self, members: int, features: int, eps: float = 1e-5):
+        super().__init__()
+        self.weight = nn.Parameter(torch.ones(members, 1, features))
+        self.bias = nn.Parameter(torch.zeros(members, 1, features))
+        self.eps = eps
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return F.layer_norm(x, x.shape[-1:], eps=self.eps) * self.weight + self.bias
+
+
+class MLP(nn.Sequential):
+    """StackedLinear -> ReLU, once per hidden size, then a StackedLinear output layer; with
+    `layer_norm`, StackedLinear -> StackedLayerNorm -> ReLU (RLPD's critic, Ball et al. 2023)."""
+
+    def __init__(self, members: int, in_dim: int, out_dim: int, hidden_sizes: Sequence[int] = (256, 256),
+                 layer_norm: bool = False):
         layers: list[nn.Module] = []
         for size in hidden_sizes:
-            layers += [StackedLinear(members, in_dim, size), nn.ReLU()]
+            layers.append(StackedLinear(members, in_dim, size))
+            if layer_norm:
+                layers.append(StackedLayerNorm(members, size))
+            layers.append(nn.ReLU())
             in_dim = size
         layers.append(StackedLinear(members, in_dim, out_dim))
         super().__init__(*layers)
@@ -81,10 +100,11 @@ class TwinQ(nn.Module):
     minimum, the pessimistic estimate SAC's actor and IQL's value target use (clipped double Q).
     """
 
-    def __init__(self, members: int, obs_dim: int, act_dim: int, hidden_sizes: Sequence[int] = (256, 256)):
+    def __init__(self, members: int, obs_dim: int, act_dim: int, hidden_sizes: Sequence[int] = (256, 256),
+                 layer_norm: bool = False):
         super().__init__()
-        self.q1 = MLP(members, obs_dim + act_dim, 1, hidden_sizes)
-        self.q2 = MLP(members, obs_dim + act_dim, 1, hidden_sizes)
+        self.q1 = MLP(members, obs_dim + act_dim, 1, hidden_sizes, layer_norm)
+        self.q2 = MLP(members, obs_dim + act_dim, 1, hidden_sizes, layer_norm)
 
     def both(self, obs: torch.Tensor, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         x = torch.cat([obs, action], dim=-1)
@@ -149,7 +169,7 @@ def _squashed_log_prob(u: torch.Tensor, mean: torch.Tensor, log_std: torch.Tenso
 
 
 @torch.no_grad()
-def soft_update(target: nn.Module, source: nn.Module, tau: float) -> None:
-    """Polyak averaging, in place: target <- (1 - tau) * target + tau * source."""
-    for t, s in zip(target.parameters(), source.parameters(), strict=True):
-        t.lerp_(s, tau)
+def soft_update(target: Sequence[torch.Tensor], source: Sequence[torch.Tensor], tau: float) -> None:
+    """Polyak averaging, in place, of matching parameter lists: target <- (1 - tau) * target + tau * source.
+    Lists rather than modules, so callers walk their modules once, not at every update."""
+    torch._foreach_lerp_(list(target), list(source), tau)

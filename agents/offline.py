@@ -162,7 +162,7 @@ class IQL(SeedBatchedAgent):
         critic_loss.sum().backward()
         self.critic_optimizer.step()
 
-        soft_update(self.target_critic, self.critic, config.tau)
+        soft_update(self.target_critic.parameters(), self.critic.parameters(), config.tau)
         stats = torch.stack([critic_loss.detach(), value_loss.detach(), actor_loss.detach(),
                              0.5 * (q1.detach().mean(1) + q2.detach().mean(1))]).numpy()
         return dict(zip(("critic_loss", "value_loss", "actor_loss", "q_mean"), stats))

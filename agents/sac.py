@@ -56,6 +56,12 @@ class SACConfig:
     tuning fixed it (Q about 0.3-0.8)."""
     target_entropy: float | None = None
     """Entropy the automatic tuning of alpha aims at; None means -act_dim (the SAC paper's heuristic)."""
+    critic_layer_norm: bool = False
+    """LayerNorm after each hidden layer of the critics (RLPD, Ball et al. 2023), which bounds how far
+    Q can extrapolate to actions the data never shows. Off by default, as in plain SAC and the paper's
+    HySAC; measured here, HySAC from p0 diverges without it (Q at the demo states, under the policy's
+    actions, grew past 1e6 on 5 of 5 seeds; docs/calibration.md), so it is the setting to try when
+    offline transitions cover states the online data never reaches."""
 
     def __post_init__(self) -> None:
         self.hidden_sizes = check_hidden_sizes(self.hidden_sizes)
@@ -66,6 +72,8 @@ class SACConfig:
         check_integer("batch_size", self.batch_size, 1)
         check_integer("buffer_size", self.buffer_size, 1)
         check_integer("learning_starts", self.learning_starts, 0)
+        if not isinstance(self.critic_layer_norm, bool):
+            raise ValueError(f"critic_layer_norm must be true or false, got {self.critic_layer_norm!r}")
 
 
 def bellman_target(reward: torch.Tensor, terminated: torch.Tensor, next_value: torch.Tensor,
@@ -102,12 +110,15 @@ class SAC(SeedBatchedAgent):
         if k == 0:
             raise ValueError("SAC needs at least one seed")
         self.actor = TanhGaussianActor(k, obs_dim, act_dim, config.hidden_sizes)
-        self.critic = TwinQ(k, obs_dim, act_dim, config.hidden_sizes)
+        self.critic = TwinQ(k, obs_dim, act_dim, config.hidden_sizes, config.critic_layer_norm)
         for i, seed in enumerate(self.seeds):
             init = torch.Generator().manual_seed(seed)
             init_member(self.actor, i, init)
             init_member(self.critic, i, init)
         self.target_critic = copy.deepcopy(self.critic).requires_grad_(False)
+        # parameter lists walked once: module traversal at every update cost ~5% of a 64-unit update
+        self.critic_params = list(self.critic.parameters())
+        self.target_params = list(self.target_critic.parameters())
         self.generators = [torch.Generator().manual_seed(seed) for seed in self.seeds]
         self.log_alpha = torch.full((k,), math.log(config.initial_alpha), requires_grad=True)
         self.target_entropy = -float(act_dim) if config.target_entropy is None else config.target_entropy
@@ -151,9 +162,11 @@ class SAC(SeedBatchedAgent):
         # Actor: maximise min Q - alpha log pi. Critics frozen: no weight gradients for them (~10% faster).
         alpha = self.log_alpha.exp().detach().unsqueeze(1)
         new_action, log_prob = self.actor(obs, generators=self.generators)
-        self.critic.requires_grad_(False)
+        for p in self.critic_params:
+            p.requires_grad_(False)
         actor_loss = (alpha * log_prob - self.critic(obs, new_action)).mean(1)
-        self.critic.requires_grad_(True)
+        for p in self.critic_params:
+            p.requires_grad_(True)
         self.actor_optimizer.zero_grad(set_to_none=True)
         actor_loss.sum().backward()
         self.actor_optimizer.step()
@@ -165,7 +178,7 @@ class SAC(SeedBatchedAgent):
         alpha_loss.sum().backward()
         self.alpha_optimizer.step()
 
-        soft_update(self.target_critic, self.critic, self.config.tau)
+        soft_update(self.target_params, self.critic_params, self.config.tau)
 
         stats = torch.stack([critic_loss.detach(), actor_loss.detach(), alpha.squeeze(1),
                              0.5 * (q1.detach().mean(1) + q2.detach().mean(1)), -log_prob.mean(1)]).numpy()

@@ -1,13 +1,14 @@
 """SAC, its networks and its replay buffer: learning on a tiny sparse task, exact targets, exact resume."""
 
 import copy
+import dataclasses
 import io
 
 import numpy as np
 import pytest
 import torch
 
-from lava_bridge_mj.agents.networks import MLP, StackedLinear, TanhGaussianActor, TwinQ, soft_update
+from lava_bridge_mj.agents.networks import MLP, StackedLinear, TanhGaussianActor, TwinQ, init_member, soft_update
 from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
 from lava_bridge_mj.agents.sac import SAC, SACConfig, bellman_target
 from lava_bridge_mj.agents.seed_batch import stack_batches
@@ -190,10 +191,34 @@ def test_deterministic_action_is_tanh_of_mean():
 def test_soft_update_interpolates():
     source, target = torch.nn.Linear(3, 2), torch.nn.Linear(3, 2)
     before = copy.deepcopy(target)
-    soft_update(target, source, tau=0.25)
+    soft_update(target.parameters(), source.parameters(), tau=0.25)
     torch.testing.assert_close(target.weight, 0.75 * before.weight + 0.25 * source.weight)
-    soft_update(target, source, tau=1.0)
+    torch.testing.assert_close(target.bias, 0.75 * before.bias + 0.25 * source.bias)
+    soft_update(target.parameters(), source.parameters(), tau=1.0)
     torch.testing.assert_close(target.bias, source.bias)
+
+
+def test_critic_layer_norm_normalises_each_members_hidden_units():
+    """With critic_layer_norm every hidden layer's pre-activations have mean 0 and variance 1 per
+    sample (the affine part starts at identity), member by member; without it they do not."""
+    captured = []
+    for layer_norm in (False, True):
+        q = TwinQ(3, 4, 2, (16, 16), layer_norm=layer_norm)
+        for i in range(3):
+            init_member(q, i, torch.Generator().manual_seed(i))
+        relus = [m for m in q.q1 if isinstance(m, torch.nn.ReLU)]
+        inputs = []
+        hooks = [r.register_forward_hook(lambda m, args, out: inputs.append(args[0])) for r in relus]
+        q(torch.randn(3, 50, 4) * 5, torch.rand(3, 50, 2))
+        for h in hooks:
+            h.remove()
+        captured.append(inputs)
+    for hidden in captured[1]:
+        torch.testing.assert_close(hidden.mean(-1), torch.zeros(3, 50), atol=1e-5, rtol=0)
+        torch.testing.assert_close(hidden.var(-1, unbiased=False), torch.ones(3, 50), atol=1e-3, rtol=0)
+    assert not torch.allclose(captured[0][0].mean(-1), torch.zeros(3, 50), atol=1e-2)
+    with pytest.raises(ValueError, match="critic_layer_norm must be true or false, got 'yes'"):
+        SACConfig(critic_layer_norm="yes")
 
 
 # --- replay buffer ---------------------------------------------------------------------------------
@@ -235,9 +260,9 @@ def test_replay_buffer_sampling_is_seeded():
 
 # --- reproducibility and exact resume --------------------------------------------------------------
 
-def run_updates(seeds, n, buffer):
+def run_updates(seeds, n, buffer, config=SMALL):
     """n updates of a batch of seeds, seed s sampling its minibatches with default_rng(s)."""
-    agent, rngs = SAC(4, 2, SMALL, seeds=seeds), [np.random.default_rng(s) for s in seeds]
+    agent, rngs = SAC(4, 2, config, seeds=seeds), [np.random.default_rng(s) for s in seeds]
     for _ in range(n):
         agent.update(stack_batches([buffer.sample(64, rng) for rng in rngs]))
     return agent
@@ -254,10 +279,12 @@ def test_same_seed_gives_identical_parameters_whatever_the_global_rng():
     assert not torch.equal(parameters(first), parameters(other))
 
 
-def test_a_seed_is_bit_identical_alone_and_inside_a_batch():
+@pytest.mark.parametrize("layer_norm", [False, True])
+def test_a_seed_is_bit_identical_alone_and_inside_a_batch(layer_norm):
     """Seed 3 trained alone and as the second of four seeds: same weights, actions and statistics."""
     buffer = filled_buffer()
-    alone, batched = run_updates([3], 15, buffer), run_updates([0, 3, 5, 8], 15, buffer)
+    config = dataclasses.replace(SMALL, critic_layer_norm=layer_norm)
+    alone, batched = run_updates([3], 15, buffer, config), run_updates([0, 3, 5, 8], 15, buffer, config)
     assert torch.equal(parameters(alone), parameters(batched, 1))
     assert not torch.equal(parameters(batched, 0), parameters(batched, 1))
     obs = np.random.default_rng(1).normal(size=(4, 6, 4)).astype(np.float32)
