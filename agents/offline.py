@@ -26,7 +26,7 @@ import torch
 
 from .checks import check_hidden_sizes, check_integer, check_number
 from .networks import MLP, TanhGaussianActor, TwinQ, init_member, soft_update
-from .seed_batch import SeedBatchedAgent
+from .seed_batch import SeedBatchedAgent, seed_adam
 
 
 @dataclass
@@ -97,7 +97,7 @@ class BC(SeedBatchedAgent):
         for i, seed in enumerate(self.seeds):
             init_member(self.actor, i, torch.Generator().manual_seed(seed))
         self.generators = [torch.Generator().manual_seed(seed) for seed in self.seeds]
-        self.optimizer = torch.optim.Adam(self.actor.parameters(), lr=config.lr, foreach=True)
+        self.optimizer = seed_adam(self.actor.parameters(), config.lr)
 
     def update(self, batch: dict[str, torch.Tensor]) -> dict[str, np.ndarray]:
         loss = -self.actor.log_prob(batch["obs"], batch["action"]).mean(1)
@@ -126,9 +126,9 @@ class IQL(SeedBatchedAgent):
                 init_member(net, i, init)
         self.target_critic = copy.deepcopy(self.critic).requires_grad_(False)
         self.generators = [torch.Generator().manual_seed(seed) for seed in self.seeds]
-        self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=config.lr, foreach=True)
-        self.critic_optimizer = torch.optim.Adam(self.critic.parameters(), lr=config.lr, foreach=True)
-        self.value_optimizer = torch.optim.Adam(self.value.parameters(), lr=config.lr, foreach=True)
+        self.actor_optimizer = seed_adam(self.actor.parameters(), config.lr)
+        self.critic_optimizer = seed_adam(self.critic.parameters(), config.lr)
+        self.value_optimizer = seed_adam(self.value.parameters(), config.lr)
 
     def update(self, batch: dict[str, torch.Tensor]) -> dict[str, np.ndarray]:
         config = self.config

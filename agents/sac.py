@@ -26,7 +26,7 @@ import torch
 
 from .checks import check_hidden_sizes, check_integer, check_number
 from .networks import TanhGaussianActor, TwinQ, init_member, soft_update
-from .seed_batch import SeedBatchedAgent
+from .seed_batch import SeedBatchedAgent, seed_adam
 
 
 @dataclass
@@ -123,14 +123,10 @@ class SAC(SeedBatchedAgent):
         self.log_alpha = torch.full((k,), math.log(config.initial_alpha), requires_grad=True)
         self.target_entropy = -float(act_dim) if config.target_entropy is None else config.target_entropy
 
-        # Adam is elementwise, so stacking seeds in one optimiser keeps them independent, provided each
-        # element is computed the same way wherever it sits in the tensor. The fused CPU kernel breaks
-        # that: it rounds its vectorised body and its scalar tail differently, so a small tensor's
-        # element (a 4-unit output bias) changed with the number of seeds beside it (measured). The
-        # foreach implementation keeps seeds bit-identical, for about 8% of the update's time at 25 seeds.
-        self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=config.lr, foreach=True)
-        self.critic_optimizer = torch.optim.Adam(self.critic.parameters(), lr=config.lr, foreach=True)
-        self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=config.lr, foreach=True)
+        # seed_adam: a seed's updates are the same in any batch (see its docstring)
+        self.actor_optimizer = seed_adam(self.actor.parameters(), config.lr)
+        self.critic_optimizer = seed_adam(self.critic.parameters(), config.lr)
+        self.alpha_optimizer = seed_adam([self.log_alpha], config.lr)
 
     @property
     def alpha(self) -> np.ndarray:

@@ -99,6 +99,30 @@ def _concat_seed_axis(trees: Sequence[Any]) -> Any:
     return first
 
 
+WHOLE_VECTORS = 64
+"""Floats per seed that make a seed's slice of a tensor whole CPU vectors (a multiple of every width
+torch's kernels use: 8 on AVX2, 16 on AVX-512)."""
+
+
+def seed_adam(parameters, lr: float) -> torch.optim.Adam:
+    """Adam over stacked seed parameters, in which a seed's numbers do not depend on its batch, and fast.
+
+    Adam is elementwise, but the fused CPU kernel rounds its vectorised body and its scalar tail
+    differently, so an element's update depends on where it sits in the tensor (measured: a 4-unit
+    output bias changed with the number of seeds beside it). Where every seed's slice is whole vectors,
+    the whole tensor is, no element reaches the tail, and the fused kernel is exact for any batch: those
+    tensors (the bulk of the weights) go in a fused group. The rest (output biases, log alpha) go in a
+    group updated tensor by tensor with ordinary elementwise ops, which round every element alike. Measured
+    on a 64-unit SAC update at one seed: about 1.2x the updates/s of foreach Adam over everything, the rate
+    the unbatched SAC had with fused Adam.
+    """
+    parameters = list(parameters)
+    whole = [p for p in parameters if (p.numel() // p.shape[0]) % WHOLE_VECTORS == 0]
+    rest = [p for p in parameters if (p.numel() // p.shape[0]) % WHOLE_VECTORS != 0]
+    groups = [{"params": whole, "fused": True, "foreach": False}, {"params": rest, "fused": False, "foreach": False}]
+    return torch.optim.Adam([g for g in groups if g["params"]], lr=lr)
+
+
 def stack_batches(batches: Sequence[dict[str, torch.Tensor]]) -> dict[str, torch.Tensor]:
     """One (K, B, ...) batch from K per-seed replay samples."""
     return {name: torch.stack([b[name] for b in batches]) for name in batches[0]}

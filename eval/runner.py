@@ -78,7 +78,7 @@ METHODS = tuple(METHOD_STRATEGIES)
 METRIC_FIELDS = ("step", "episodes", "success_p0", "success_ood", "return_p0", "return_ood",
                  "train_return", "train_success", "q_mean", "alpha", "critic_loss", "actor_loss", "guide_horizon",
                  "wall_time")
-CHECKPOINT_VERSION = 2
+CHECKPOINT_VERSION = 3  # 3: optimisers in two parameter groups (seed_adam)
 CHECKPOINTS = ("checkpoint.pt", "checkpoint.prev.pt")
 RUN_FILES = ("config.json", "metrics.csv", "start_weights.npz", *CHECKPOINTS, "final.pt", "rollouts.mp4")
 """What a run directory holds besides policies/: what --overwrite removes."""
@@ -589,8 +589,12 @@ def _read_checkpoint(path: Path, config: RunConfig) -> dict:
         state = torch.load(path, weights_only=False)
     except Exception as error:  # a checkpoint from elsewhere can fail in many ways
         raise ValueError(f"checkpoint {path} cannot be read ({type(error).__name__}: {error})") from None
-    if not isinstance(state, dict) or state.get("version") != CHECKPOINT_VERSION:
-        raise ValueError(f"checkpoint {path} is not a version-{CHECKPOINT_VERSION} lava-bridge-mj checkpoint")
+    if not isinstance(state, dict) or "version" not in state:
+        raise ValueError(f"checkpoint {path} is not a lava-bridge-mj checkpoint")
+    if state["version"] != CHECKPOINT_VERSION:
+        raise ValueError(f"checkpoint {path} has format version {state['version']!r} and this lava-bridge-mj "
+                         f"reads version {CHECKPOINT_VERSION}: continue it with the version that wrote it, "
+                         "or start a new run directory")
     if state["config"] != config.to_dict():
         raise ValueError(f"checkpoint {path} was written with another configuration; "
                          "resume with the same options or start a new run directory")

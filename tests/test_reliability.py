@@ -13,6 +13,7 @@ import sys
 import time
 
 import pytest
+import torch
 
 TINY = {"steps": 1500, "eval_every": 250, "eval_episodes": 2, "demo_subset": 20,
         "sac": {"hidden_sizes": [16, 16], "batch_size": 32, "buffer_size": 500, "learning_starts": 100}}
@@ -158,6 +159,19 @@ def test_a_foreign_or_corrupt_checkpoint_is_refused_and_earlier_results_kept(con
     result = subprocess.run(command(config_file, out, "--resume"), capture_output=True, text=True)
     assert result.returncode == 2
     assert "cannot be read" in result.stderr and "Traceback" not in result.stderr
+    assert (out / "metrics.csv").read_text() == kept
+
+
+def test_a_checkpoint_of_an_older_format_is_refused_by_version(config_file, reference, tmp_path):
+    out = tmp_path / "run"
+    subprocess.run(command(config_file, out), check=True, capture_output=True)
+    for name in ("checkpoint.pt", "checkpoint.prev.pt"):
+        state = torch.load(out / name, weights_only=False)
+        torch.save({**state, "version": 2}, out / name)
+    kept = (out / "metrics.csv").read_text()
+    result = subprocess.run(command(config_file, out, "--resume"), capture_output=True, text=True)
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert "format version 2" in result.stderr and "reads version 3" in result.stderr
     assert (out / "metrics.csv").read_text() == kept
 
 

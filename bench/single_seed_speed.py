@@ -1,0 +1,91 @@
+"""The single-seed training path against an earlier revision of this package, side by side in one run.
+
+Issue 4's target: batching seeds must not make one seed slower. This checks out REV (default 5eff605,
+the last commit before the batched trainer) into a temporary git worktree, and times the same
+single-seed `train()` call (SAC from p0, 64x64, one update per step after 1,000 warm-up steps, one
+final evaluation episode per start distribution) in fresh subprocesses, alternating the two trees so
+that background load hits both alike. Figure: env steps per second, whole run included; the median of
+the repeats, and the ratio this tree / REV (above 1: this tree is faster).
+
+Usage: python bench/single_seed_speed.py [--rev 5eff605] [--steps 3000] [--repeats 3] [--quick]
+Needs git and this repository's history.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+# the repository's folders and the import names setup.cfg maps them to
+PACKAGE_DIRS = {"lava_bridge_mj": "lava_bridge_mj", "agents": "lava_bridge_mj/agents",
+                "eval": "lava_bridge_mj/eval", "assets": "lava_bridge_mj/assets"}
+
+TIMED = """
+import sys, time, tempfile, torch
+torch.set_num_threads(1)
+from lava_bridge_mj.eval.runner import RunConfig, train
+steps = int(sys.argv[1])
+config = RunConfig.from_dict({"method": "sac", "seed": 0, "steps": steps, "eval_every": steps,
+                              "eval_episodes": 1, "sac": {"learning_starts": 1000}})
+with tempfile.TemporaryDirectory() as out:
+    start = time.perf_counter()
+    train(config, out, progress=False)
+    print(steps / (time.perf_counter() - start))
+"""
+
+
+def importable_tree(source: Path, into: Path) -> Path:
+    """A folder where `import lava_bridge_mj` finds `source`'s code laid out as setup.cfg installs it."""
+    package = into / "lava_bridge_mj"
+    package.mkdir(parents=True)
+    for entry in (source / "lava_bridge_mj").iterdir():
+        (package / entry.name).symlink_to(entry)
+    for folder in ("agents", "eval", "assets"):
+        (package / folder).symlink_to(source / folder)
+    return into
+
+
+def rate(tree: Path, steps: int) -> float:
+    env = {**os.environ, "PYTHONPATH": str(tree), "OMP_NUM_THREADS": "1"}
+    result = subprocess.run([sys.executable, "-c", TIMED, str(steps)], env=env, cwd=tree, check=True,
+                            capture_output=True, text=True)
+    return float(result.stdout.strip().splitlines()[-1])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rev", default="5eff605")
+    parser.add_argument("--steps", type=int, default=3000)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--quick", action="store_true", help="1,200 steps, one repeat (CI: it runs, figures not asserted)")
+    args = parser.parse_args()
+    steps, repeats = (1200, 1) if args.quick else (args.steps, args.repeats)
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        worktree = tmp / "rev"
+        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q", str(worktree), args.rev], check=True)
+        try:
+            trees = {"this tree": importable_tree(ROOT, tmp / "head"),
+                     args.rev: importable_tree(worktree, tmp / "old")}
+            rates: dict[str, list[float]] = {name: [] for name in trees}
+            for _ in range(repeats):
+                for name, tree in trees.items():
+                    rates[name].append(rate(tree, steps))
+        finally:
+            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(worktree)], check=True)
+    print(f"single-seed SAC from p0, 64x64, {steps} steps (1,000 warm-up), 1 torch thread, "
+          f"median of {repeats}; load average {os.getloadavg()[0]:.2f}")
+    for name, values in rates.items():
+        print(f"  {name:>10}: {statistics.median(values):7.1f} steps/s   runs: {', '.join(f'{v:.1f}' for v in values)}")
+    ratio = statistics.median(rates["this tree"]) / statistics.median(rates[args.rev])
+    print(f"  ratio this tree / {args.rev}: {ratio:.2f}")
+
+
+if __name__ == "__main__":
+    main()
