@@ -66,6 +66,9 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="1,200 steps, one repeat (CI: it runs, figures not asserted)")
     args = parser.parse_args()
     steps, repeats = (1200, 1) if args.quick else (args.steps, args.repeats)
+    known = subprocess.run(["git", "-C", str(ROOT), "cat-file", "-e", f"{args.rev}^{{commit}}"], capture_output=True)
+    if known.returncode != 0:
+        sys.exit(f"revision {args.rev} is not in this clone's history (a shallow clone?): nothing to compare against")
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         worktree = tmp / "rev"
