@@ -237,3 +237,32 @@ def test_the_ray_backend_without_ray_names_the_extra(config_file, tmp_path, caps
         sweep.main(tiny_argv(tmp_path / "out", config_file, "sac", "0", 300, "--backend", "ray"))
     assert exit_.value.code == 2 and "lava-bridge-mj[ray]" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_sweep_killed_with_sigkill_resumes_to_the_uninterrupted_numbers(config_file, tmp_path):
+    """SIGKILL of the sweep and its job process mid-training (after two checkpoints), then the same
+    command: every run finishes with the metrics of an uninterrupted sweep."""
+    argv = tiny_argv(tmp_path / "reference", config_file, "sac", "0-1", 750, "--workers", "1")
+    assert sweep.main(argv) == 0
+    out = tmp_path / "out"
+    argv = tiny_argv(out, config_file, "sac", "0-1", 750, "--workers", "1")
+    process = subprocess.Popen([sys.executable, "-m", "lava_bridge_mj.eval.sweep", *argv],
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    started = next(line for line in process.stdout if "(pid " in line)
+    job_pid = int(started.rsplit("(pid ", 1)[1].rstrip(")\n"))
+    metrics = out / "sac-d500" / "seed1" / "metrics.csv"
+    deadline = time.monotonic() + 180
+    while time.monotonic() < deadline and (not metrics.exists() or len(metrics.read_text().splitlines()) < 3):
+        time.sleep(0.05)
+    os.kill(job_pid, signal.SIGKILL)
+    process.kill()
+    process.communicate(timeout=60)
+    assert not (out / "sac-d500" / "seed0" / "final.pt").exists(), "killed before the end"
+    early = out / "sac-d500" / "seed0" / "policies" / "step_150.pt"
+    written = early.stat().st_mtime_ns
+    assert sweep.main(argv) == 0
+    assert early.stat().st_mtime_ns == written, "resumed from a checkpoint, not retrained from the start"
+    for seed in ("seed0", "seed1"):
+        resumed = metrics_without_wall_time(out / "sac-d500" / seed)
+        assert resumed == metrics_without_wall_time(tmp_path / "reference" / "sac-d500" / seed)
+        assert [row["step"] for row in resumed] == ["150", "300", "450", "600", "750"]
