@@ -43,6 +43,15 @@ class SeedBatchedAgent:
                                generators=self.generators)
         return (action.squeeze(1) if single else action).numpy()
 
+    def policy(self, i: int = 0):
+        """Seed i's deterministic policy (its evaluation behaviour): observations (n, obs_dim) or
+        (obs_dim,) -> actions (n, act_dim) or (act_dim,)."""
+        def act(obs: np.ndarray) -> np.ndarray:
+            obs = np.asarray(obs, dtype=np.float32)
+            # every seed acts on the same observations; seed i's actions are kept
+            return self.act(np.repeat(obs[None], self.num_seeds, 0), deterministic=True)[i]
+        return act
+
     def seed_state(self, i: int) -> dict[str, Any]:
         """Everything seed i needs to continue bit-identically (its data buffers are separate): its
         slice of every network, optimiser moment and scalar, with the seed axis kept (length 1)."""

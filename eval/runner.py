@@ -543,11 +543,7 @@ class Run:
 
     def policy(self, i: int = 0):
         """Seed i's deterministic policy: observations (n, 4) or (4,) -> actions (n, 2) or (2,)."""
-        def act(obs: np.ndarray) -> np.ndarray:
-            obs = np.asarray(obs, dtype=np.float32)
-            # every seed acts on the same observations; seed i's actions are kept
-            return self.agent.act(np.repeat(obs[None], self.agent.num_seeds, 0), deterministic=True)[i]
-        return act
+        return self.agent.policy(i)
 
     # --- checkpoints ----------------------------------------------------------------------------
     def save(self, name: str = "checkpoint.pt") -> None:

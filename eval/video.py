@@ -136,10 +136,7 @@ def load_policy(run_dir: str | Path, policy: str = "final") -> tuple[Policy, Any
         raise ValueError(f"cannot load the actor from {path} ({type(error).__name__}: {error})") from None
     step = spec.group(1) if snapshot else state.get("step")
     described = f"{config.method} seed {config.seed}, {path.name}" + (f" (step {step})" if step is not None else "")
-
-    def act(obs: np.ndarray) -> np.ndarray:
-        return agent.act(np.asarray(obs, dtype=np.float32)[None], deterministic=True)[0]
-    return act, config, described
+    return agent.policy(0), config, described
 
 
 def main(argv: list[str] | None = None) -> int:
