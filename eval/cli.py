@@ -104,7 +104,8 @@ def build_parser() -> argparse.ArgumentParser:
                              "that holds one seedS directory per seed (default: runs/METHOD)")
     written = parser.add_mutually_exclusive_group()
     written.add_argument("--resume", action="store_true",
-                         help="continue the run in --out from its last checkpoint (same configuration)")
+                         help="continue the run in --out from its last checkpoint (same configuration; a larger "
+                              "--steps extends a finished run, equal to training to it in one go)")
     written.add_argument("--overwrite", action="store_true",
                          help="replace the run already in --out instead of refusing")
     parser.add_argument("--video", action="store_true",

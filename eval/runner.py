@@ -19,7 +19,8 @@ resumed alone or in another batch. The seeds of a batch checkpoint together afte
 mid-episode (the physics state (qpos, qvel) and the episode's step count are saved, and restoring
 them replays the uninterrupted run exactly). A kill between two seeds' checkpoint writes leaves
 some seeds one checkpoint ahead; each keeps the previous one too, and a resume picks the newest step
-every seed of the batch has.
+every seed of the batch has. A resume may raise `steps`: a finished run extended to a larger budget
+equals one trained to it in one go (`RunConfig.continues`).
 """
 
 from __future__ import annotations
@@ -157,6 +158,12 @@ class RunConfig:
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON values (tuples become lists), as written to config.json."""
         return json.loads(json.dumps(dataclasses.asdict(self)))
+
+    def continues(self, saved: Any) -> bool:
+        """True when `saved` (a config.json's values) is this run up to its step budget: `steps` is
+        the one field a resume may change, because nothing but the loop's end depends on it, so a
+        finished run extended to more steps equals a run trained to them in one go."""
+        return isinstance(saved, dict) and {**saved, "steps": self.steps} == self.to_dict()
 
     @classmethod
     def from_dict(cls, values: dict[str, Any], source: str = "config") -> "RunConfig":
@@ -570,6 +577,10 @@ class Run:
             steps = {str(s.dir): sorted(found) for s, found in zip(self.seed_runs, available)}
             raise ValueError(f"the seeds' checkpoints are at different steps {steps}; resume them in separate batches")
         self.step = max(common)
+        if self.step > self.config.steps:
+            raise ValueError(f"the checkpoints of {', '.join(str(s.dir) for s in self.seed_runs)} are at step "
+                             f"{self.step}, past steps={self.config.steps}; a run continues to more steps, "
+                             "never fewer")
         states = [found[self.step] for found in available]
         self.elapsed = max(state["elapsed"] for state in states)
         self.agent.load_seed_states([state["agent"] for state in states])
@@ -591,9 +602,9 @@ def _read_checkpoint(path: Path, config: RunConfig) -> dict:
         raise ValueError(f"checkpoint {path} has format version {state['version']!r} and this lava-bridge-mj "
                          f"reads version {CHECKPOINT_VERSION}: continue it with the version that wrote it, "
                          "or start a new run directory")
-    if state["config"] != config.to_dict():
+    if not config.continues(state["config"]):
         raise ValueError(f"checkpoint {path} was written with another configuration; "
-                         "resume with the same options or start a new run directory")
+                         "resume with the same options (--steps may change) or start a new run directory")
     return state
 
 
@@ -646,9 +657,9 @@ def _check_run_directory(config: RunConfig, directory: Path, resume: bool, overw
         existing = json.loads(config_file.read_text())
     except ValueError:
         raise RunDirectoryError(f"{config_file} is not valid JSON; not resuming into it") from None
-    if existing != config.to_dict():
+    if not config.continues(existing):
         raise RunDirectoryError(f"{directory} holds a run with another configuration; resume it "
-                                "with the same options, or choose another directory")
+                                "with the same options (--steps may change), or choose another directory")
 
 
 @contextmanager

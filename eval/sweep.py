@@ -115,7 +115,7 @@ def plan(methods: Sequence[str], demo_sets: Sequence[int], seeds: Sequence[int],
 
 def seed_status(config: RunConfig, directory: Path) -> str:
     """'finished' (final.pt and this configuration), 'foreign' (config.json of another run, or
-    unreadable) or 'todo' (nothing yet, or this configuration unfinished)."""
+    unreadable) or 'todo' (nothing yet, this configuration unfinished, or finished at another budget)."""
     config_file = directory / "config.json"
     if not config_file.exists():
         return "todo"
@@ -123,9 +123,10 @@ def seed_status(config: RunConfig, directory: Path) -> str:
         existing = json.loads(config_file.read_text())
     except ValueError:
         return "foreign"
-    if existing != config.to_dict():
+    if not config.continues(existing):
         return "foreign"
-    return "finished" if (directory / "final.pt").exists() else "todo"
+    # a run finished at a smaller budget is todo: the resume extends it to this one
+    return "finished" if existing == config.to_dict() and (directory / "final.pt").exists() else "todo"
 
 
 def _foreign_error(config: RunConfig, directory: Path) -> str:
@@ -133,7 +134,8 @@ def _foreign_error(config: RunConfig, directory: Path) -> str:
         existing = json.loads((directory / "config.json").read_text())
     except ValueError:
         return f"{directory}/config.json is not valid JSON; not training into it"
-    differ = sorted(k for k, v in config.to_dict().items() if not isinstance(existing, dict) or existing.get(k) != v)
+    differ = sorted(k for k, v in config.to_dict().items()
+                    if k != "steps" and (not isinstance(existing, dict) or existing.get(k) != v))
     return (f"{directory} holds a run with another configuration (differs in {', '.join(differ)}); not "
             "overwriting it: move it away or sweep into another --out")
 

@@ -91,6 +91,31 @@ def test_resume_refuses_a_checkpoint_of_another_configuration(tmp_path):
         train(tiny_config(steps=300, seed=4), tmp_path, resume=True, progress=False)
 
 
+@pytest.mark.parametrize("method", ["auxss", "jsrl"])
+def test_a_finished_run_extended_to_more_steps_equals_one_trained_to_them(tmp_path, method):
+    # the 300k-step rows of a 100k-step protocol run come from extending it, not retraining
+    train(tiny_config(method, steps=300), tmp_path / "extended", progress=False)
+    short_rows = metrics_without_wall_time(tmp_path / "extended")
+    extended = train(tiny_config(method, steps=700), tmp_path / "extended", resume=True, progress=False)
+    straight = train(tiny_config(method, steps=700), tmp_path / "straight", progress=False)
+
+    rows = metrics_without_wall_time(tmp_path / "extended")
+    assert rows == metrics_without_wall_time(tmp_path / "straight")
+    assert rows[:len(short_rows)] == short_rows and len(rows) == 7
+    for name, tensor in straight.agent.actor.state_dict().items():
+        assert torch.equal(tensor, extended.agent.actor.state_dict()[name]), name
+    assert json.loads((tmp_path / "extended/config.json").read_text())["steps"] == 700
+    assert torch.load(tmp_path / "extended/final.pt", weights_only=False)["step"] == 700
+
+
+def test_resume_refuses_to_shorten_a_run_and_changes_nothing(tmp_path):
+    train(tiny_config(steps=300), tmp_path, progress=False)
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file() and p.name != ".lock"}
+    with pytest.raises(ValueError, match=r"at step 300, past steps=200; a run continues to more steps, never fewer"):
+        train(tiny_config(steps=200), tmp_path, resume=True, progress=False)
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file() and p.name != ".lock"} == before
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--method", "ppo"], "invalid choice: 'ppo'"),
     (["--method", "auxss", "--steps", "0"], "expected a positive integer, got 0"),

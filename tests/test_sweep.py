@@ -134,6 +134,23 @@ def test_an_unfinished_run_resumes_from_its_checkpoint_and_only_it_trains(finish
     assert metrics_without_wall_time(stopped) == metrics_without_wall_time(finished[0] / "sac-d500" / "seed1")
 
 
+def test_a_larger_steps_extends_finished_runs_from_their_last_checkpoint(finished, config_file, tmp_path):
+    out = copy_of(finished, tmp_path)
+    assert sweep.main(tiny_argv(out, config_file, "sac", "0-1", 450)) == 0
+    jobs = record(out)["jobs"]  # one seed per job: two workers
+    assert [(job["status"], job["trained"], job["resumed"]) for job in jobs] == [
+        ("done", [0], {"0": 300}), ("done", [1], {"1": 300})]
+    for seed in (0, 1):
+        run = out / "sac-d500" / f"seed{seed}"
+        assert [row["step"] for row in metrics_without_wall_time(run)] == ["150", "300", "450"]
+        assert json.loads((run / "config.json").read_text())["steps"] == 450
+    # asking for fewer steps than a run has is that job's error, and its files stay as they were
+    metrics = (out / "sac-d500" / "seed0" / "metrics.csv").read_bytes()
+    assert sweep.main(tiny_argv(out, config_file, "sac", "0-1", 300)) == 1
+    assert all("past steps=300" in job["error"] for job in record(out)["jobs"])
+    assert (out / "sac-d500" / "seed0" / "metrics.csv").read_bytes() == metrics
+
+
 def test_a_failing_job_is_reported_and_the_others_finish(config_file, tmp_path, capsys):
     out = tmp_path / "out"
     foreign = out / "bc-d500" / "seed0"
