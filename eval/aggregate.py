@@ -4,12 +4,15 @@ A run is any directory, at any depth under the one given, that holds both `confi
 `metrics.csv` with at least one row (eval/runner.py writes them); names of directories are not read.
 
 **Groups.** Runs are grouped by method and demo set first, labelled like `auxss (0.5K)`. Runs of one
-method and demo set whose configurations differ in anything else (every config.json entry but `seed`,
-nested sections flattened to dotted names such as `strategy.sigma` or `sac.hidden_sizes`) are split
+method and demo set whose configurations differ in anything else (every config.json entry but `seed`
+and `steps`, nested sections flattened to dotted names such as `strategy.sigma` or `sac.hidden_sizes`) are split
 further, and the entries that differ are added to the label: `auxss (0.5K) [strategy.sigma=0.2]`, with
 `default` for a run that leaves the entry out. An entry a config.json lacks because it predates the
 field counts as RunConfig's current default. A group therefore holds the seeds of exactly one
-configuration, never a mix.
+configuration, never a mix. `steps` is a budget, not a configuration: a run extended from 100,000 to
+300,000 steps has the same first evaluations as one stopped at 100,000 (eval/runner.py), so both
+join one group. `find_runs(root, budget=N)` keeps only evaluations at or before step N, which puts
+runs of different budgets on one footing (steps to threshold included); `seeds=` keeps only those seeds.
 
 **Curves.** Per group, metric (success_p0, success_ood, train_return) and evaluation step: the
 interquartile mean (IQM, the 25%-trimmed mean) across seeds and its 95% percentile confidence interval
@@ -36,6 +39,7 @@ import dataclasses
 import json
 import math
 from collections import defaultdict
+from collections.abc import Collection
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -72,9 +76,11 @@ class RunRecord:
         return int(self.config.get("demos", 500))
 
 
-def find_runs(root: str | Path) -> list[RunRecord]:
-    """Every run directory under `root` (itself included), in path order. ValueError when there is
-    none, or when a config.json or metrics.csv cannot be read (naming the file)."""
+def find_runs(root: str | Path, budget: float | None = None, seeds: Collection[int] | None = None) -> list[RunRecord]:
+    """Every run directory under `root` (itself included), in path order; with `budget`, only the
+    evaluations at or before that step (a run with none left is dropped); with `seeds`, only those
+    seeds' runs. ValueError when no run is left, or when a config.json or metrics.csv cannot be read
+    (naming the file)."""
     root = Path(root)
     if not root.is_dir():
         raise ValueError(f"{root} is not a directory")
@@ -93,10 +99,14 @@ def find_runs(root: str | Path) -> list[RunRecord]:
             rows = read_metrics(directory)
         except (OSError, ValueError, TypeError, KeyError) as error:
             raise ValueError(f"{directory / 'metrics.csv'} cannot be read: {error}") from None
-        if rows:
+        if budget is not None:
+            rows = [row for row in rows if row["step"] <= budget]
+        if rows and (seeds is None or config.get("seed") in seeds):
             runs.append(RunRecord(directory, config, rows))
     if not runs:
-        raise ValueError(f"{root} holds no run directory (config.json with metrics.csv) at any depth")
+        chosen = "".join([f" with evaluations at or before step {budget:,.0f}" if budget is not None else "",
+                          f" of seeds {sorted(seeds)}" if seeds is not None else ""])
+        raise ValueError(f"{root} holds no run directory (config.json with metrics.csv){chosen} at any depth")
     return runs
 
 
@@ -169,7 +179,8 @@ def group_runs(runs: list[RunRecord]) -> list[Group]:
         by_base[run.method, run.demos].append(run)
     groups = []
     for (method, demos), members in by_base.items():
-        flats = [{k: v for k, v in {**defaults, **_flatten(run.config)}.items() if k != "seed"} for run in members]
+        flats = [{k: v for k, v in {**defaults, **_flatten(run.config)}.items() if k not in ("seed", "steps")}
+                 for run in members]
         names = sorted(set().union(*flats))
         differing = [name for name in names if len({flat.get(name, "default") for flat in flats}) > 1]
         split: dict[tuple, list[RunRecord]] = defaultdict(list)

@@ -14,6 +14,7 @@ import argparse
 import json
 import os
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 from lava_bridge_mj.eval.runner import METHODS, RunConfig
@@ -57,6 +58,17 @@ def parse_seeds(text: str) -> list[int]:
     if repeated:
         raise argparse.ArgumentTypeError(f"seeds must be distinct; repeated: {repeated}")
     return seeds
+
+
+def format_seeds(seeds: Sequence[int]) -> str:
+    """[0, 1, 2, 5] -> '0-2,5', the inverse of parse_seeds."""
+    parts, start = [], 0
+    for i in range(1, len(seeds) + 1):
+        if i == len(seeds) or seeds[i] != seeds[i - 1] + 1:
+            first, last = seeds[start], seeds[i - 1]
+            parts.append(str(first) if first == last else f"{first}-{last}")
+            start = i
+    return ",".join(parts)
 
 
 def build_parser() -> argparse.ArgumentParser:

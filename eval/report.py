@@ -31,6 +31,7 @@ import numpy as np
 
 from lava_bridge_mj.eval.aggregate import (BOOTSTRAP_REPS, BOOTSTRAP_SEED, METRICS, THRESHOLD, Curve, Group,
                                            RunRecord, find_runs, group_runs, iqm_curves, steps_to_threshold)
+from lava_bridge_mj.eval.cli import _positive_int, format_seeds, parse_seeds
 
 STANDARD_DEMOS = 500
 """The paper's benchmark protocol gives every demo-using method 500 transitions (0.5K)."""
@@ -247,7 +248,9 @@ def _maze_section(groups: list[Group], threshold: float, root: Path, out: Path) 
     if source is not None:  # every run's start_weights.npz holds its candidate states
         with np.load(source.path / "start_weights.npz") as saved:
             states, steps, probabilities = saved["states"], saved["steps"], saved["probabilities"]
-    if chosen is not None:
+    if chosen is not None:  # only the evaluations the report keeps (see --budget)
+        kept = steps <= chosen.rows[-1]["step"]
+        steps, probabilities = steps[kept], probabilities[kept]
         success = {row["step"]: row["success_p0"] for row in chosen.rows}
         picks = np.unique(np.linspace(0, len(steps) - 1, min(WEIGHT_SNAPSHOTS, len(steps))).round().astype(int))
         snapshots = [(float(steps[i]), success.get(float(steps[i]), math.nan), probabilities[i]) for i in picks]
@@ -293,16 +296,21 @@ def _threshold_table(groups: list[Group], threshold: float) -> list[str]:
 
 
 def build_report(root: Path, out: Path, threshold: float = THRESHOLD, reps: int = BOOTSTRAP_REPS,
-                 runs: list[RunRecord] | None = None) -> Path:
+                 runs: list[RunRecord] | None = None, budget: int | None = None,
+                 seeds: list[int] | None = None) -> Path:
     """Write every figure and report.md for the runs under `root` (or `runs`, found there already) into
-    `out`; returns report.md's path. ValueError, before anything is written, when `root` holds no run."""
+    `out`; returns report.md's path. `budget` and `seeds` select evaluations and runs as
+    `find_runs` does. ValueError, before anything is written, when `root` holds no such run."""
     from lava_bridge_mj.eval.atomic import atomic_write_text
     from lava_bridge_mj.eval.runner import METHODS
 
-    groups = group_runs(runs if runs is not None else find_runs(root))
+    groups = group_runs(runs if runs is not None else find_runs(root, budget, seeds))
     curves = {g.label: iqm_curves(g, METRICS, reps=reps) for g in groups}
     out.mkdir(parents=True, exist_ok=True)
-    lines = [f"# LavaBridge-v0 report: `{root}`", "",
+    selection = [f"evaluations up to step {budget:,}" if budget is not None else "",
+                 f"seeds {format_seeds(sorted(seeds))}" if seeds is not None else ""]
+    selection = " and ".join(part for part in selection if part)
+    lines = [f"# LavaBridge-v0 report: `{root}`" + (f", {selection}" if selection else ""), "",
              f"{sum(len(g.runs) for g in groups)} runs in {len(groups)} groups (one configuration each; "
              f"eval/aggregate.py says how runs are grouped). Lines and table entries are interquartile means "
              f"(IQM) across seeds; bands and brackets are 95% stratified-bootstrap confidence intervals (rliable, "
@@ -351,6 +359,11 @@ def main(argv: list[str] | None = None) -> int:
                         help="p0 success that counts as solved, for steps-to-threshold (default: %(default)s)")
     parser.add_argument("--reps", type=int, default=BOOTSTRAP_REPS,
                         help="bootstrap resamples per confidence interval (default: %(default)s)")
+    parser.add_argument("--budget", type=_positive_int, default=None,
+                        help="only evaluations at or before this step, e.g. 100000 to compare runs extended to "
+                             "300000 with runs stopped at 100000 (default: every evaluation)")
+    parser.add_argument("--seeds", type=parse_seeds, default=None,
+                        help="only these seeds' runs, e.g. 0-4 or 0,3,5-7 (default: every run)")
     args = parser.parse_args(argv)
     if args.reps < 1:
         parser.error(f"--reps must be >= 1, got {args.reps}")
@@ -361,11 +374,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"lava-bridge-bench report: error: --out {out} exists and is not a directory", file=sys.stderr)
         return 2
     try:
-        runs = find_runs(args.dir)  # checked before anything is written
+        runs = find_runs(args.dir, args.budget, args.seeds)  # checked before anything is written
     except ValueError as error:
         print(f"lava-bridge-bench report: error: {error}", file=sys.stderr)
         return 2
-    report = build_report(args.dir, out, args.threshold, args.reps, runs)
+    report = build_report(args.dir, out, args.threshold, args.reps, runs, args.budget, args.seeds)
     print(f"wrote {report} and its figures from {len(runs)} runs")
     return 0
 

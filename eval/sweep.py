@@ -45,7 +45,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from lava_bridge_mj.eval.atomic import atomic_write_text
-from lava_bridge_mj.eval.cli import _check_writable, _positive_int, parse_seeds, read_config_file
+from lava_bridge_mj.eval.cli import _check_writable, _positive_int, format_seeds, parse_seeds, read_config_file
 from lava_bridge_mj.eval.runner import METHODS, RunConfig, RunInterrupted, train
 
 DEMO_SETS = (500, 7500)
@@ -79,17 +79,6 @@ class Job:
 
     def run_dirs(self, out: Path) -> list[Path]:
         return [Path(out) / self.group / f"seed{seed}" for seed in self.seeds]
-
-
-def format_seeds(seeds: Sequence[int]) -> str:
-    """[0, 1, 2, 5] -> '0-2,5', the inverse of cli.parse_seeds."""
-    parts, start = [], 0
-    for i in range(1, len(seeds) + 1):
-        if i == len(seeds) or seeds[i] != seeds[i - 1] + 1:
-            first, last = seeds[start], seeds[i - 1]
-            parts.append(str(first) if first == last else f"{first}-{last}")
-            start = i
-    return ",".join(parts)
 
 
 def split(seeds: Sequence[int], parts: int) -> list[tuple[int, ...]]:

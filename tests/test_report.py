@@ -152,6 +152,27 @@ def test_groups_by_config_not_by_directory_names_at_any_depth(tmp_path):
     assert [g.method for g in groups] == sorted((g.method for g in groups), key=METHODS.index)
 
 
+def test_a_budget_puts_runs_extended_further_on_one_footing_with_the_others(tmp_path):
+    # seeds 0-1 were extended to 4,000 steps, seed 2 stopped at 2,000; `steps` does not split the group
+    write_run(tmp_path / "s0", seed=0, p0=[0.0, 0.2, 0.9, 1.0], steps=[1000, 2000, 3000, 4000])
+    write_run(tmp_path / "s1", seed=1, p0=[0.0, 0.8, 1.0, 1.0], steps=[1000, 2000, 3000, 4000])
+    write_run(tmp_path / "s2", seed=2, p0=[0.1, 0.3], steps=[1000, 2000])
+    for path, steps in (("s0", 4000), ("s1", 4000), ("s2", 2000)):
+        config = json.loads((tmp_path / path / "config.json").read_text())
+        (tmp_path / path / "config.json").write_text(json.dumps({**config, "steps": steps}))
+    [every] = aggregate.group_runs(aggregate.find_runs(tmp_path))
+    assert every.seeds == [0, 1, 2] and every.label == "auxss (0.5K)"
+    assert aggregate.steps_to_threshold(every).per_seed == {0: 3000, 1: 2000, 2: math.inf}
+
+    [budget] = aggregate.group_runs(aggregate.find_runs(tmp_path, budget=2000))
+    assert aggregate.steps_to_threshold(budget).per_seed == {0: math.inf, 1: 2000, 2: math.inf}
+    assert [run.rows[-1]["step"] for run in budget.runs] == [2000, 2000, 2000]
+    [extended] = aggregate.group_runs(aggregate.find_runs(tmp_path, seeds={0, 1}))
+    np.testing.assert_array_equal(extended.steps, [1000, 2000, 3000, 4000])
+    with pytest.raises(ValueError, match="with evaluations at or before step 500 of seeds \\[2\\]"):
+        aggregate.find_runs(tmp_path, budget=500, seeds={2})
+
+
 def test_curves_use_the_steps_every_seed_has_and_skip_missing_values(tmp_path):
     write_run(tmp_path / "s0", seed=0, p0=[0.0, 0.5, 1.0], train=[0.1, float("nan"), 0.3])
     write_run(tmp_path / "s1", seed=1, p0=[0.2, 0.6], train=[0.2, 0.4])  # still running: one evaluation fewer
@@ -211,6 +232,21 @@ def test_report_writes_every_figure_and_the_markdown(tmp_path, capsys):
     assert re.search(r"\| auxss \(0\.5K\) \| 3 \| 5,000 \| 0\.56 \[", text)
     assert "| sac (0.5K) | 0 of 3 | not reached | not reached |" in text
     assert "start weights" in text and "seed 0" in text
+
+
+def test_report_budget_and_seeds_select_evaluations_and_runs(tmp_path, capsys):
+    sweep = tmp_path / "sweep"
+    for seed in (0, 1, 2):
+        write_run(sweep / f"seed{seed}", seed=seed, p0=[0.0, 0.5, 0.9, 1.0], weights=True)
+    assert report.main([str(sweep), "--budget", "2000", "--seeds", "1,0", "--reps", "50",
+                        "--out", str(tmp_path / "out")]) == 0
+    text = (tmp_path / "out" / "report.md").read_text()
+    assert text.startswith(f"# LavaBridge-v0 report: `{sweep}`, evaluations up to step 2,000 and seeds 0-1")
+    assert "| auxss (0.5K) | 2: 0, 1 | 2 (2,000) |" in text
+    assert "| auxss (0.5K) | 0 of 2 | not reached |" in text  # 0.9 comes at step 3,000, past the budget
+    with pytest.raises(SystemExit):
+        report.main([str(sweep), "--budget", "0"])
+    assert "expected a positive integer, got 0" in capsys.readouterr().err
 
 
 def test_report_skips_figures_whose_methods_are_absent(tmp_path):
