@@ -188,6 +188,10 @@ def group_runs(runs: list[RunRecord]) -> list[Group]:
             split[tuple(flat.get(name, "default") for name in differing)].append(run)
         for values, group_members in split.items():
             group_members.sort(key=lambda run: (run.seed, str(run.path)))
+            for a, b in zip(group_members, group_members[1:]):
+                if a.seed == b.seed:  # one seed counted twice would narrow every interval
+                    raise ValueError(f"seed {a.seed} of one configuration ({method}, {demos} demos) is in two "
+                                     f"run directories, {a.path} and {b.path}; report each run once")
             groups.append(Group(method, demos, dict(zip(differing, values)), group_members))
     order = {method: i for i, method in enumerate(METHODS)}
     groups.sort(key=lambda g: (order.get(g.method, len(order)), g.method, g.demos, g.label))

@@ -25,6 +25,7 @@ import argparse
 import dataclasses
 import math
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -240,7 +241,7 @@ def _runs_table(groups: list[Group]) -> list[str]:
     return lines
 
 
-def _maze_section(groups: list[Group], threshold: float, root: Path, out: Path) -> list[str]:
+def _maze_section(groups: list[Group], threshold: float, where: str, out: Path) -> list[str]:
     """Draw maze.png/pdf; the report's paragraph about it."""
     chosen = weights_run(groups, threshold)
     source = chosen or next((r for g in groups for r in g.runs if (r.path / "start_weights.npz").is_file()), None)
@@ -262,7 +263,7 @@ def _maze_section(groups: list[Group], threshold: float, root: Path, out: Path) 
     else:
         with_states = f" with the {len(states)} candidate demo states" if states is not None else ""
         caption = "the maze" + with_states
-        text = (f"The maze{with_states}. *No AuxSS run with start_weights.npz in `{root}`: the start weights "
+        text = (f"The maze{with_states}. *No AuxSS run with start_weights.npz in {where}: the start weights "
                 f"are not shown.*")
     layout = _layout((source or groups[0].runs[0]).config)
     save_figure(maze_figure(layout, states, snapshots, caption), out, "maze")
@@ -295,22 +296,27 @@ def _threshold_table(groups: list[Group], threshold: float) -> list[str]:
     return lines
 
 
-def build_report(root: Path, out: Path, threshold: float = THRESHOLD, reps: int = BOOTSTRAP_REPS,
+def build_report(roots: Path | Sequence[Path], out: Path, threshold: float = THRESHOLD, reps: int = BOOTSTRAP_REPS,
                  runs: list[RunRecord] | None = None, budget: int | None = None,
                  seeds: list[int] | None = None) -> Path:
-    """Write every figure and report.md for the runs under `root` (or `runs`, found there already) into
-    `out`; returns report.md's path. `budget` and `seeds` select evaluations and runs as
-    `find_runs` does. ValueError, before anything is written, when `root` holds no such run."""
+    """Write every figure and report.md for the runs under `roots` (one directory or several; or
+    `runs`, found there already) into `out`; returns report.md's path. `budget` and `seeds` select
+    evaluations and runs as `find_runs` does. ValueError, before anything is written, when a root
+    holds no such run."""
     from lava_bridge_mj.eval.atomic import atomic_write_text
     from lava_bridge_mj.eval.runner import METHODS
 
-    groups = group_runs(runs if runs is not None else find_runs(root, budget, seeds))
+    roots = [Path(roots)] if isinstance(roots, (str, Path)) else [Path(root) for root in roots]
+    if runs is None:
+        runs = [run for root in roots for run in find_runs(root, budget, seeds)]
+    groups = group_runs(runs)
+    where = ", ".join(f"`{root}`" for root in roots)
     curves = {g.label: iqm_curves(g, METRICS, reps=reps) for g in groups}
     out.mkdir(parents=True, exist_ok=True)
     selection = [f"evaluations up to step {budget:,}" if budget is not None else "",
                  f"seeds {format_seeds(sorted(seeds))}" if seeds is not None else ""]
     selection = " and ".join(part for part in selection if part)
-    lines = [f"# LavaBridge-v0 report: `{root}`" + (f", {selection}" if selection else ""), "",
+    lines = [f"# LavaBridge-v0 report: {where}" + (f", {selection}" if selection else ""), "",
              f"{sum(len(g.runs) for g in groups)} runs in {len(groups)} groups (one configuration each; "
              f"eval/aggregate.py says how runs are grouped). Lines and table entries are interquartile means "
              f"(IQM) across seeds; bands and brackets are 95% stratified-bootstrap confidence intervals (rliable, "
@@ -339,7 +345,7 @@ def build_report(root: Path, out: Path, threshold: float = THRESHOLD, reps: int 
     add_figure("start_distributions", "Start-distribution study", benchmark_groups(groups, START_STUDY),
                "SAC trained from each start-state distribution over the same candidate demo states.",
                f"none of {', '.join(START_STUDY)} has runs here.", START_STUDY)
-    lines.extend(["", "## The maze and AuxSS's start weights", "", *_maze_section(groups, threshold, root, out)])
+    lines.extend(["", "## The maze and AuxSS's start weights", "", *_maze_section(groups, threshold, where, out)])
     lines.extend(["", "## At the last evaluation", "", *_last_evaluation_table(groups, curves)])
     lines.extend(["", f"## Steps to p0 success >= {threshold:g}", "", *_threshold_table(groups, threshold)])
     report = out / "report.md"
@@ -352,9 +358,10 @@ def main(argv: list[str] | None = None) -> int:
         prog="lava-bridge-bench report",
         description="Regenerate the paper's figures (PNG and PDF) and a Markdown report with IQM/CI tables "
                     "from a directory of runs (found at any depth by config.json and metrics.csv).")
-    parser.add_argument("dir", type=Path, help="directory holding the runs, e.g. a sweep's output")
+    parser.add_argument("dirs", metavar="DIR", type=Path, nargs="+",
+                        help="directory holding runs, e.g. a sweep's output; several are reported together")
     parser.add_argument("--out", type=Path, default=None, help="where to write the figures and report.md "
-                        "(default: DIR/report)")
+                        "(default: DIR/report of the first DIR)")
     parser.add_argument("--threshold", type=float, default=THRESHOLD,
                         help="p0 success that counts as solved, for steps-to-threshold (default: %(default)s)")
     parser.add_argument("--reps", type=int, default=BOOTSTRAP_REPS,
@@ -369,16 +376,17 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--reps must be >= 1, got {args.reps}")
     if not 0 <= args.threshold <= 1:
         parser.error(f"--threshold must be a success rate in [0, 1], got {args.threshold}")
-    out = args.out if args.out is not None else args.dir / "report"
+    out = args.out if args.out is not None else args.dirs[0] / "report"
     if out.exists() and not out.is_dir():
         print(f"lava-bridge-bench report: error: --out {out} exists and is not a directory", file=sys.stderr)
         return 2
     try:
-        runs = find_runs(args.dir, args.budget, args.seeds)  # checked before anything is written
+        runs = [run for root in args.dirs for run in find_runs(root, args.budget, args.seeds)]  # before writing
+        group_runs(runs)  # refuses a seed given twice
     except ValueError as error:
         print(f"lava-bridge-bench report: error: {error}", file=sys.stderr)
         return 2
-    report = build_report(args.dir, out, args.threshold, args.reps, runs, args.budget, args.seeds)
+    report = build_report(args.dirs, out, args.threshold, args.reps, runs, args.budget, args.seeds)
     print(f"wrote {report} and its figures from {len(runs)} runs")
     return 0
 

@@ -249,6 +249,23 @@ def test_report_budget_and_seeds_select_evaluations_and_runs(tmp_path, capsys):
     assert "expected a positive integer, got 0" in capsys.readouterr().err
 
 
+def test_report_of_several_directories_and_a_run_given_twice(tmp_path, capsys):
+    write_run(tmp_path / "protocol" / "auxss" / "seed0", seed=0, p0=[0.0, 1.0])
+    write_run(tmp_path / "ablations" / "seed0", seed=0, p0=[0.0, 0.5], strategy={"ema": 0.5})
+    out = tmp_path / "out"
+    assert report.main([str(tmp_path / "protocol"), str(tmp_path / "ablations"), "--out", str(out),
+                        "--reps", "50"]) == 0
+    text = (out / "report.md").read_text()
+    assert text.startswith(f"# LavaBridge-v0 report: `{tmp_path / 'protocol'}`, `{tmp_path / 'ablations'}`")
+    assert "| auxss (0.5K) [strategy.ema=0.5] | 1: 0 |" in text and "[strategy.ema=default] | 1: 0 |" in text
+    # the same run reached twice would count its seed twice: refused, naming both paths
+    assert report.main([str(tmp_path / "protocol"), str(tmp_path / "protocol" / "auxss"), "--out",
+                        str(tmp_path / "twice")]) == 2
+    err = capsys.readouterr().err
+    assert "seed 0 of one configuration (auxss, 500 demos) is in two run directories" in err
+    assert not (tmp_path / "twice").exists()
+
+
 def test_report_skips_figures_whose_methods_are_absent(tmp_path):
     for seed in (0, 1):
         write_run(tmp_path / "sac" / f"seed{seed}", method="sac", seed=seed, p0=[0.0, 0.0, 0.1])
