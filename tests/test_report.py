@@ -16,7 +16,7 @@ pytest.importorskip("rliable", reason="the report needs the plots extra: pip ins
 
 from rliable import metrics as rliable_metrics  # noqa: E402
 
-from lava_bridge_mj.eval import aggregate, cli, report  # noqa: E402
+from lava_bridge_mj.eval import aggregate, cli, findings, report  # noqa: E402
 from lava_bridge_mj.eval.runner import METHODS, METRIC_FIELDS, RunConfig  # noqa: E402
 
 BASE_CONFIG = RunConfig().to_dict()
@@ -308,3 +308,61 @@ def test_cli_dispatches_report_and_its_help_names_the_subcommands(tmp_path, caps
     result = subprocess.run([sys.executable, "-m", "lava_bridge_mj.eval.report", "--help"],
                             capture_output=True, text=True)
     assert result.returncode == 0 and "--out" in result.stdout
+
+
+# --- the paper's findings (eval/findings.py) --------------------------------------------------------
+def findings_for(tmp_path, runs):
+    """runs: {(method, demos, extra config entries as (name, JSON text) pairs): {seed: (p0, ood)}} ->
+    the findings by number, the groups and their curves."""
+    for (method, demos, extra), seeds in runs.items():
+        for seed, (p0, ood) in seeds.items():
+            write_run(tmp_path / f"{method}-{demos}-{len(extra)}" / f"seed{seed}", method=method, seed=seed,
+                      demos=demos, p0=p0, ood=ood, **{k: json.loads(v) for k, v in extra})
+    groups = aggregate.group_runs(aggregate.find_runs(tmp_path))
+    curves = {g.label: aggregate.iqm_curves(g, reps=20) for g in groups}
+    return {f.number: f for f in findings.check_findings(groups, curves)}, groups, curves
+
+
+def same(p0, ood=None, seeds=3):
+    return {seed: (p0, ood if ood is not None else p0) for seed in range(seeds)}
+
+
+def test_findings_verdicts_against_hand_computed_criteria(tmp_path):
+    # steps are 1000..6000; medians to 0.8: auxss 2000, omega 2000, hysac 6000, jsrl never, uniform 5000,
+    # goaldist 2000 (as fast as AuxSS: not "clearly slower")
+    ramp = lambda first: [1.0 if step >= first else 0.0 for step in range(1000, 7000, 1000)]  # noqa: E731
+    found, _, _ = findings_for(tmp_path, {
+        ("sac", 500, ()): same([0.0, 0.0, 0.1, 0.05, 0.0, 0.0]),
+        ("auxss", 500, ()): same(ramp(2000), [0.0, 0.0, 0.0, 0.5, 0.6, 0.7]),
+        ("auxss", 500, (("strategy", '{"ema": 0.5}'),)): same(ramp(1000)),  # a variant never stands in for auxss
+        ("omega_ss", 500, ()): same(ramp(2000), [0.0, 0.3, 0.3, 0.3, 0.3, 0.3]),
+        ("hysac", 500, ()): same(ramp(6000), [0.0] * 5 + [0.4]),
+        ("jsrl", 7500, ()): same([0.0] * 6),
+        ("hysac_auxss", 500, ()): same(ramp(1000), [0.0] * 5 + [0.69]),
+        ("uniform_ss", 500, ()): same(ramp(5000)),
+        ("goaldist_ss", 500, ()): same(ramp(2000)),
+        ("iql", 500, ()): same([1.0] * 6, [0.5] * 6),
+        ("bc", 500, ()): same([0.9] * 6, [0.1] * 6),
+    })
+    assert found[1].verdict == "reproduced" and "at most 0.10 over 6 evaluations" in found[1].measured
+    # 2000 <= 6000 / 3; jsrl (0.5K) and hysac (7.5K) were not run, which the note says
+    assert found[2].verdict == "reproduced" and "ratio 0.33" in found[2].measured
+    assert "not run: hysac (7.5K), jsrl (0.5K)" in found[2].measured
+    assert found[3].verdict == "partly"  # 0.69 beats hysac's 0.4, not auxss's 0.7
+    # early (first 2 evaluations): both 0.0 from p0; later ood 0.3 < 0.7
+    assert found[4].verdict == "reproduced" and "Omega-SS 0.30, AuxSS 0.70" in found[4].measured
+    assert found[5].verdict == "partly"  # uniform 5000 > 2000; goaldist 2000 is not later
+    assert found[6].verdict == "partly"  # IQL 1.0 / 0.5 holds; BC at 0.9 from p0 does not fail
+
+
+def test_findings_say_which_runs_are_missing_and_when_a_claim_fails(tmp_path):
+    found, groups, curves = findings_for(tmp_path, {
+        ("sac", 500, ()): same([0.0, 0.5, 0.9]),
+        ("auxss", 500, ()): same([0.0, 0.0, 0.0]),
+        ("jsrl", 500, ()): same([0.0, 0.9, 1.0]),
+    })
+    assert found[1].verdict == "not reproduced"  # SAC reaches 0.9
+    assert found[2].verdict == "not reproduced"  # AuxSS never reaches 0.8
+    assert found[3].verdict == "missing runs" and found[3].measured == "no runs of hysac_auxss (0.5K), hysac (0.5K)"
+    assert {f.verdict for n, f in found.items() if n >= 4} == {"missing runs"}
+    assert findings.demo_size_rows(groups, curves) == [] and findings.variant_rows(groups, curves) == []
