@@ -8,7 +8,7 @@ STAMP := $(VENV)/.installed
 MESA_PACKAGES := libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 libosmesa6
 export MUJOCO_GL ?= egl
 
-.PHONY: run expert-video test bench setup gl clean
+.PHONY: run expert-video test bench report setup gl clean
 
 # The main job: AuxSS on 5 seeds trained together (about 15 min on 2 cores), then a summary table.
 # --resume makes it safe to run again: a finished batch is left as it is, an interrupted one continues.
@@ -24,6 +24,14 @@ test: setup
 
 bench: setup
 	$(BIN)/python bench/env_throughput.py
+
+# docs/results.md's tables and figures, regenerated from the committed metrics in results/ (no training):
+# every method at the 100k protocol budget, AuxSS and SAC at the paper's 300k, and the AuxSS ablations.
+report: setup
+	$(BIN)/lava-bridge-bench report results/protocol --budget 100000 --out docs/report
+	$(BIN)/lava-bridge-bench report results/protocol/auxss-d500 results/protocol/sac-d500 --seeds 0-4 --out docs/report_300k
+	$(BIN)/lava-bridge-bench report results/protocol/auxss-d500 results/ablations --budget 100000 --seeds 0-4 \
+	    --out docs/report_ablations
 
 setup: gl $(STAMP)
 

@@ -88,6 +88,12 @@ def _missing(claim: str, number: int, names: list[str]) -> Finding:
     return Finding(number, claim, "no runs of " + ", ".join(names), MISSING)
 
 
+def _require(groups: list[Group], methods: tuple[str, ...]) -> tuple[dict[str, Group], list[str]]:
+    """The default 0.5K group of each method, and the names of those that have none."""
+    chosen = {m: pick(groups, m) for m in methods}
+    return chosen, [f"{m} (0.5K)" for m, g in chosen.items() if g is None]
+
+
 def _grade(passed: int, needed: int) -> str:
     return REPRODUCED if passed == needed else PARTLY if passed else NOT
 
@@ -127,9 +133,9 @@ def auxss_faster_than_hybrids(groups, curves) -> Finding:
 
 def hybrid_auxss_most_robust(groups, curves) -> Finding:
     claim = "HySAC+AuxSS is at least as robust (success from ood) as AuxSS and HySAC alone"
-    chosen = {m: pick(groups, m) for m in ("hysac_auxss", "auxss", "hysac")}
-    if any(g is None for g in chosen.values()):
-        return _missing(claim, 3, [f"{m} (0.5K)" for m, g in chosen.items() if g is None])
+    chosen, absent = _require(groups, ("hysac_auxss", "auxss", "hysac"))
+    if absent:
+        return _missing(claim, 3, absent)
     ood = {m: _last(curves, g, "success_ood") for m, g in chosen.items()}
     passed = sum(ood["hysac_auxss"] >= ood[m] - TOLERANCE for m in ("auxss", "hysac"))
     measured = "IQM success from ood at the last evaluation: " + ", ".join(
@@ -139,9 +145,10 @@ def hybrid_auxss_most_robust(groups, curves) -> Finding:
 
 def omega_early_then_behind(groups, curves) -> Finding:
     claim = "Omega-SS matches AuxSS early in training; its ood success falls behind AuxSS later"
-    omega, auxss = pick(groups, "omega_ss"), pick(groups, "auxss")
-    if omega is None or auxss is None:
-        return _missing(claim, 4, [f"{m} (0.5K)" for m, g in (("omega_ss", omega), ("auxss", auxss)) if g is None])
+    chosen, absent = _require(groups, ("omega_ss", "auxss"))
+    if absent:
+        return _missing(claim, 4, absent)
+    omega, auxss = chosen["omega_ss"], chosen["auxss"]
     steps = np.intersect1d(curves[omega.label]["success_p0"].steps, curves[auxss.label]["success_p0"].steps)
     early = steps[:max(1, len(steps) // 3)]
 
@@ -160,9 +167,9 @@ def omega_early_then_behind(groups, curves) -> Finding:
 
 def undirected_starts_slower(groups, curves) -> Finding:
     claim = "U-SS and GoalDist-SS are clearly slower than AuxSS and Omega-SS"
-    chosen = {m: pick(groups, m) for m in ("uniform_ss", "goaldist_ss", "auxss", "omega_ss")}
-    if any(g is None for g in chosen.values()):
-        return _missing(claim, 5, [f"{m} (0.5K)" for m, g in chosen.items() if g is None])
+    chosen, absent = _require(groups, ("uniform_ss", "goaldist_ss", "auxss", "omega_ss"))
+    if absent:
+        return _missing(claim, 5, absent)
     median = {m: _median_steps(g) for m, g in chosen.items()}
     fastest_safe = max(median["auxss"], median["omega_ss"])
     passed = sum(math.isfinite(fastest_safe) and median[m] > fastest_safe for m in ("uniform_ss", "goaldist_ss"))
@@ -172,10 +179,10 @@ def undirected_starts_slower(groups, curves) -> Finding:
 
 def offline_methods(groups, curves) -> Finding:
     claim = "IQL does well from p0 and drops from ood; BC fails from both with 0.5K demos"
-    iql, bc = pick(groups, "iql"), pick(groups, "bc")
-    if iql is None or bc is None:
-        return _missing(claim, 6, [f"{m} (0.5K)" for m, g in (("iql", iql), ("bc", bc)) if g is None])
-    values = {(m, k): _last(curves, g, f"success_{k}") for m, g in (("iql", iql), ("bc", bc)) for k in ("p0", "ood")}
+    chosen, absent = _require(groups, ("iql", "bc"))
+    if absent:
+        return _missing(claim, 6, absent)
+    values = {(m, k): _last(curves, g, f"success_{k}") for m, g in chosen.items() for k in ("p0", "ood")}
     iql_part = values["iql", "p0"] >= 0.8 - TOLERANCE and values["iql", "ood"] <= values["iql", "p0"] - 0.1 + TOLERANCE
     bc_part = values["bc", "p0"] <= 0.2 + TOLERANCE and values["bc", "ood"] <= 0.2 + TOLERANCE
     measured = (f"IQM success at the last evaluation, p0 / ood: IQL {values['iql', 'p0']:.2f} / "
