@@ -349,7 +349,7 @@ def test_findings_verdicts_against_hand_computed_criteria(tmp_path):
     assert found[2].verdict == "reproduced" and "ratio 0.33" in found[2].measured
     assert "not run: hysac (7.5K), jsrl (0.5K)" in found[2].measured
     assert found[3].verdict == "partly"  # 0.69 beats hysac's 0.4, not auxss's 0.7
-    # early (first 2 evaluations): both 0.0 from p0; later ood 0.3 < 0.7
+    # early (first 3 of 6 evaluations): both 0.0, 1.0, 1.0 from p0; later ood 0.3 < 0.7
     assert found[4].verdict == "reproduced" and "Omega-SS 0.30, AuxSS 0.70" in found[4].measured
     assert found[5].verdict == "partly"  # uniform 5000 > 2000; goaldist 2000 is not later
     assert found[6].verdict == "partly"  # IQL 1.0 / 0.5 holds; BC at 0.9 from p0 does not fail
@@ -366,3 +366,13 @@ def test_findings_say_which_runs_are_missing_and_when_a_claim_fails(tmp_path):
     assert found[3].verdict == "missing runs" and found[3].measured == "no runs of hysac_auxss (0.5K), hysac (0.5K)"
     assert {f.verdict for n, f in found.items() if n >= 4} == {"missing runs"}
     assert findings.demo_size_rows(groups, curves) == [] and findings.variant_rows(groups, curves) == []
+
+
+def test_omega_that_learns_later_than_auxss_does_not_match_it_early(tmp_path):
+    # first half (3 of 6 evaluations): Omega-SS's mean IQM p0 is 0.0, AuxSS's (0 + 0.5 + 1) / 3 = 0.5
+    found, _, _ = findings_for(tmp_path, {
+        ("auxss", 500, ()): same([0.0, 0.5, 1.0, 1.0, 1.0, 1.0], [0.8] * 6),
+        ("omega_ss", 500, ()): same([0.0, 0.0, 0.0, 1.0, 1.0, 1.0], [0.5] * 6),
+    })
+    assert found[4].verdict == "partly"  # behind from ood (0.5 < 0.8), but not matching early
+    assert "first 3 evaluations (to step 3,000): Omega-SS 0.00, AuxSS 0.50" in found[4].measured

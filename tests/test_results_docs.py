@@ -1,0 +1,42 @@
+"""The committed reports (docs/report*/report.md, which docs/results.md and the README quote) are what
+`make report` makes from the committed metrics in results/: a changed metric, a changed aggregate or
+a hand-edited table fails here. The commands are read from the Makefile, the one place they live."""
+
+import re
+import shlex
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("rliable", reason="the report needs the plots extra: pip install -e '.[plots]'")
+
+from lava_bridge_mj.eval import report  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def make_report_commands():
+    """The argument lists of the `lava-bridge-bench report` lines of the Makefile's report target."""
+    makefile = (ROOT / "Makefile").read_text().replace("\\\n", " ")
+    recipe = re.search(r"^report:.*\n((?:\t.*\n)+)", makefile, re.MULTILINE).group(1)
+    return [shlex.split(line.split("lava-bridge-bench report", 1)[1]) for line in recipe.splitlines()
+            if "lava-bridge-bench report" in line]
+
+
+COMMANDS = make_report_commands()
+
+
+def test_the_report_target_makes_the_three_reports():
+    assert [argv[argv.index("--out") + 1] for argv in COMMANDS] == ["docs/report", "docs/report_300k",
+                                                                     "docs/report_ablations"]
+
+
+@pytest.mark.parametrize("argv", COMMANDS, ids=[argv[argv.index("--out") + 1] for argv in COMMANDS])
+def test_committed_report_is_regenerated_exactly_from_results(argv, tmp_path, monkeypatch):
+    committed = ROOT / argv[argv.index("--out") + 1] / "report.md"
+    argv = list(argv)
+    argv[argv.index("--out") + 1] = str(tmp_path)
+    monkeypatch.chdir(ROOT)  # the report names its directories as given, relative to the repository
+    assert report.main(argv) == 0
+    assert (tmp_path / "report.md").read_text() == committed.read_text(), \
+        f"{committed} is stale: run `make report` and commit what it writes"
