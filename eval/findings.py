@@ -1,6 +1,6 @@
 """The paper's findings on Lava Bridge, each checked against a fixed criterion on the runs at hand.
 
-`check_findings(groups, curves)` returns one `Finding` per claim of issue 8 (findings 1-6), with the
+`check_findings(groups)` returns one `Finding` per claim of issue 8 (findings 1-6), with the
 numbers it rests on and a verdict: *reproduced*, *partly*, *not reproduced*, or *missing runs* when a
 group it needs is absent. The criteria are written down here, before and independently of any
 result, as the most direct reading of the paper's words (section 5); they are deliberately simple
@@ -31,7 +31,10 @@ which the paper states as comparisons to look at rather than as pass/fail claims
 
 Groups are taken in their default configuration: a group whose settings (eval/aggregate.py) differ
 from RunConfig's defaults is a variant (an ablation, a LayerNorm critic) and never stands in for its
-method in findings 1-6.
+method in findings 1-6. The online groups are first cut to the last evaluation step all of them have
+(`common_step`), so no claim compares one method at 50,000 steps with another at 100,000 (offline
+methods count gradient steps and are left as they are). Values are IQMs across seeds at each step
+(eval/aggregate.py's `iqm`, the report's curves without their intervals).
 """
 
 from __future__ import annotations
@@ -41,7 +44,7 @@ import math
 
 import numpy as np
 
-from lava_bridge_mj.eval.aggregate import Curve, Group, _flatten, demos_label, steps_to_threshold
+from lava_bridge_mj.eval.aggregate import Group, _flatten, demos_label, iqm, steps_to_threshold
 
 REPRODUCED, PARTLY, NOT, MISSING = "reproduced", "partly", "not reproduced", "missing runs"
 TOLERANCE = 1e-9
@@ -70,9 +73,33 @@ def pick(groups: list[Group], method: str, demos: int = 500) -> Group | None:
     return next((g for g in groups if g.method == method and g.demos == demos and is_default(g)), None)
 
 
-def _last(curves: dict[str, dict[str, Curve]], group: Group, metric: str) -> float:
-    curve = curves[group.label][metric]
-    return float(curve.iqm[-1]) if len(curve.steps) else math.nan
+def common_step(groups: list[Group]) -> float | None:
+    """The last evaluation step every online group has, when some group has evaluated further (the
+    findings then stop there); None when they all end at the same step."""
+    from lava_bridge_mj.eval.runner import OFFLINE_METHODS
+
+    ends = {g.steps[-1] for g in groups if g.method not in OFFLINE_METHODS and len(g.steps)}
+    return min(ends) if len(ends) > 1 else None
+
+
+def _cut(groups: list[Group], step: float | None) -> list[Group]:
+    from lava_bridge_mj.eval.runner import OFFLINE_METHODS
+
+    if step is None:
+        return groups
+    return [g if g.method in OFFLINE_METHODS else dataclasses.replace(g, runs=[
+        dataclasses.replace(run, rows=[row for row in run.rows if row["step"] <= step]) for run in g.runs])
+        for g in groups]
+
+
+def _curve(group: Group, metric: str) -> np.ndarray:
+    """IQM across seeds at each of the group's common steps."""
+    return iqm(group.scores(metric))
+
+
+def _last(group: Group, metric: str) -> float:
+    curve = _curve(group, metric)
+    return float(curve[-1]) if len(curve) else math.nan
 
 
 def _median_steps(group: Group) -> float:
@@ -99,21 +126,21 @@ def _grade(passed: int, needed: int) -> str:
     return REPRODUCED if passed == needed else PARTLY if passed else NOT
 
 
-def sac_fails(groups, curves) -> Finding:
+def sac_fails(groups) -> Finding:
     claim = "SAC from p0 stays near 0% success within the budget"
     sac = pick(groups, "sac")
     if sac is None:
         return _missing(claim, 1, ["sac (0.5K)"])
-    p0 = curves[sac.label]["success_p0"]
-    peak, last = float(np.nanmax(p0.iqm)), float(p0.iqm[-1])
+    p0, steps = _curve(sac, "success_p0"), sac.steps
+    peak, last = float(np.nanmax(p0)), float(p0[-1])
     verdict = REPRODUCED if peak <= 0.1 + TOLERANCE else PARTLY if last <= 0.2 + TOLERANCE else NOT
-    measured = (f"IQM success from p0: at most {peak:.2f} over {len(p0.steps)} evaluations to step "
-                f"{p0.steps[-1]:,.0f}, {last:.2f} at the last; {steps_to_threshold(sac).reached} of "
+    measured = (f"IQM success from p0: at most {peak:.2f} over {len(steps)} evaluations to step "
+                f"{steps[-1]:,.0f}, {last:.2f} at the last; {steps_to_threshold(sac).reached} of "
                 f"{len(sac.runs)} seeds ever reach 0.8")
     return Finding(1, claim, measured, verdict)
 
 
-def auxss_faster_than_hybrids(groups, curves) -> Finding:
+def auxss_faster_than_hybrids(groups) -> Finding:
     claim = "AuxSS reaches 0.8 from p0 in at most 1/3 of the steps of the best of HySAC and JSRL (0.5K or 7.5K)"
     auxss = pick(groups, "auxss")
     hybrids = [g for g in (pick(groups, m, d) for m in HYBRIDS for d in (500, 7500)) if g is not None]
@@ -132,33 +159,32 @@ def auxss_faster_than_hybrids(groups, curves) -> Finding:
     return Finding(2, claim, measured, verdict)
 
 
-def hybrid_auxss_most_robust(groups, curves) -> Finding:
+def hybrid_auxss_most_robust(groups) -> Finding:
     claim = "HySAC+AuxSS is at least as robust (success from ood) as AuxSS and HySAC alone"
     chosen, absent = _require(groups, ("hysac_auxss", "auxss", "hysac"))
     if absent:
         return _missing(claim, 3, absent)
-    ood = {m: _last(curves, g, "success_ood") for m, g in chosen.items()}
+    ood = {m: _last(g, "success_ood") for m, g in chosen.items()}
     passed = sum(ood["hysac_auxss"] >= ood[m] - TOLERANCE for m in ("auxss", "hysac"))
     measured = "IQM success from ood at the last evaluation: " + ", ".join(
         f"{chosen[m].label} {ood[m]:.2f}" for m in chosen)
     return Finding(3, claim, measured, _grade(passed, 2))
 
 
-def omega_early_then_behind(groups, curves) -> Finding:
+def omega_early_then_behind(groups) -> Finding:
     claim = "Omega-SS matches AuxSS early in training; its ood success falls behind AuxSS later"
     chosen, absent = _require(groups, ("omega_ss", "auxss"))
     if absent:
         return _missing(claim, 4, absent)
     omega, auxss = chosen["omega_ss"], chosen["auxss"]
-    steps = np.intersect1d(curves[omega.label]["success_p0"].steps, curves[auxss.label]["success_p0"].steps)
+    steps = np.intersect1d(omega.steps, auxss.steps)
     early = steps[:max(1, len(steps) // 2)]
 
     def mean_p0(group):
-        curve = curves[group.label]["success_p0"]
-        return float(np.mean(curve.iqm[np.isin(curve.steps, early)]))
+        return float(np.mean(_curve(group, "success_p0")[np.isin(group.steps, early)]))
 
     early_omega, early_auxss = mean_p0(omega), mean_p0(auxss)
-    late_omega, late_auxss = _last(curves, omega, "success_ood"), _last(curves, auxss, "success_ood")
+    late_omega, late_auxss = _last(omega, "success_ood"), _last(auxss, "success_ood")
     passed = (early_omega >= early_auxss - 0.1 - TOLERANCE) + (late_omega < late_auxss - TOLERANCE)
     measured = (f"mean IQM success from p0 over the first {len(early)} evaluations (to step {early[-1]:,.0f}): "
                 f"Omega-SS {early_omega:.2f}, AuxSS {early_auxss:.2f}; IQM success from ood at the last: "
@@ -166,7 +192,7 @@ def omega_early_then_behind(groups, curves) -> Finding:
     return Finding(4, claim, measured, _grade(passed, 2))
 
 
-def undirected_starts_slower(groups, curves) -> Finding:
+def undirected_starts_slower(groups) -> Finding:
     claim = "U-SS and GoalDist-SS are clearly slower than AuxSS and Omega-SS"
     chosen, absent = _require(groups, ("uniform_ss", "goaldist_ss", "auxss", "omega_ss"))
     if absent:
@@ -178,12 +204,12 @@ def undirected_starts_slower(groups, curves) -> Finding:
     return Finding(5, claim, measured, _grade(passed, 2))
 
 
-def offline_methods(groups, curves) -> Finding:
+def offline_methods(groups) -> Finding:
     claim = "IQL does well from p0 and drops from ood; BC fails from both with 0.5K demos"
     chosen, absent = _require(groups, ("iql", "bc"))
     if absent:
         return _missing(claim, 6, absent)
-    values = {(m, k): _last(curves, g, f"success_{k}") for m, g in chosen.items() for k in ("p0", "ood")}
+    values = {(m, k): _last(g, f"success_{k}") for m, g in chosen.items() for k in ("p0", "ood")}
     iql_part = values["iql", "p0"] >= 0.8 - TOLERANCE and values["iql", "ood"] <= values["iql", "p0"] - 0.1 + TOLERANCE
     bc_part = values["bc", "p0"] <= 0.2 + TOLERANCE and values["bc", "ood"] <= 0.2 + TOLERANCE
     measured = (f"IQM success at the last evaluation, p0 / ood: IQL {values['iql', 'p0']:.2f} / "
@@ -195,36 +221,40 @@ CHECKS = (sac_fails, auxss_faster_than_hybrids, hybrid_auxss_most_robust, omega_
           undirected_starts_slower, offline_methods)
 
 
-def check_findings(groups: list[Group], curves: dict[str, dict[str, Curve]]) -> list[Finding]:
-    """Findings 1-6 on these groups and their IQM curves (eval/aggregate.py's iqm_curves)."""
-    return [check(groups, curves) for check in CHECKS]
+def check_findings(groups: list[Group]) -> list[Finding]:
+    """Findings 1-6 on these groups, the online ones cut to their common last step."""
+    groups = _cut(groups, common_step(groups))
+    return [check(groups) for check in CHECKS]
 
 
-def _summary_row(group: Group, curves: dict[str, dict[str, Curve]]) -> str:
+def _summary_row(group: Group) -> str:
     found = steps_to_threshold(group)
     median = f"{found.median:,.0f}" if math.isfinite(found.median) else "never"
     return (f"| {group.label} | {len(group.runs)} | {found.reached} | {median} | "
-            f"{_last(curves, group, 'success_p0'):.2f} | {_last(curves, group, 'success_ood'):.2f} |")
+            f"{_last(group, 'success_p0'):.2f} | {_last(group, 'success_ood'):.2f} |")
 
 
 SUMMARY_HEADER = ["| group | seeds | seeds reaching 0.8 | median steps to 0.8 | IQM p0 at the last | IQM ood at the last |",
                   "|---|---:|---:|---:|---:|---:|"]
 
 
-def demo_size_rows(groups: list[Group], curves: dict[str, dict[str, Curve]]) -> list[str]:
-    """Finding 7: every default-configuration method with runs on both demo sets, 0.5K beside 7.5K."""
-    rows = []
+def demo_size_rows(groups: list[Group]) -> list[str]:
+    """Finding 7: every default-configuration method with runs on both demo sets, 0.5K beside 7.5K
+    (online groups cut to their common last step)."""
+    groups, rows = _cut(groups, common_step(groups)), []
     for method in dict.fromkeys(g.method for g in groups):
         pair = [pick(groups, method, d) for d in (500, 7500)]
         if all(pair):
-            rows += [_summary_row(g, curves) for g in pair]
+            rows += [_summary_row(g) for g in pair]
     return SUMMARY_HEADER + rows if rows else []
 
 
-def variant_rows(groups: list[Group], curves: dict[str, dict[str, Curve]], method: str = "auxss") -> list[str]:
-    """Finding 8: the method's default group (0.5K) and each of its variants (ablations)."""
+def variant_rows(groups: list[Group], method: str = "auxss") -> list[str]:
+    """Finding 8: the method's default group (0.5K) and each of its variants (ablations), online
+    groups cut to their common last step."""
+    groups = _cut(groups, common_step(groups))
     base = pick(groups, method)
     variants = [g for g in groups if g.method == method and g.demos == 500 and not is_default(g)]
     if base is None or not variants:
         return []
-    return SUMMARY_HEADER + [_summary_row(g, curves) for g in [base, *variants]]
+    return SUMMARY_HEADER + [_summary_row(g) for g in [base, *variants]]

@@ -313,14 +313,13 @@ def test_cli_dispatches_report_and_its_help_names_the_subcommands(tmp_path, caps
 # --- the paper's findings (eval/findings.py) --------------------------------------------------------
 def findings_for(tmp_path, runs):
     """runs: {(method, demos, extra config entries as (name, JSON text) pairs): {seed: (p0, ood)}} ->
-    the findings by number, the groups and their curves."""
+    the findings by number and the groups."""
     for (method, demos, extra), seeds in runs.items():
         for seed, (p0, ood) in seeds.items():
             write_run(tmp_path / f"{method}-{demos}-{len(extra)}" / f"seed{seed}", method=method, seed=seed,
                       demos=demos, p0=p0, ood=ood, **{k: json.loads(v) for k, v in extra})
     groups = aggregate.group_runs(aggregate.find_runs(tmp_path))
-    curves = {g.label: aggregate.iqm_curves(g, reps=20) for g in groups}
-    return {f.number: f for f in findings.check_findings(groups, curves)}, groups, curves
+    return {f.number: f for f in findings.check_findings(groups)}, groups
 
 
 def same(p0, ood=None, seeds=3):
@@ -331,7 +330,7 @@ def test_findings_verdicts_against_hand_computed_criteria(tmp_path):
     # steps are 1000..6000; medians to 0.8: auxss 2000, omega 2000, hysac 6000, jsrl never, uniform 5000,
     # goaldist 2000 (as fast as AuxSS: not "clearly slower")
     ramp = lambda first: [1.0 if step >= first else 0.0 for step in range(1000, 7000, 1000)]  # noqa: E731
-    found, _, _ = findings_for(tmp_path, {
+    found, _ = findings_for(tmp_path, {
         ("sac", 500, ()): same([0.0, 0.0, 0.1, 0.05, 0.0, 0.0]),
         ("auxss", 500, ()): same(ramp(2000), [0.0, 0.0, 0.0, 0.5, 0.6, 0.7]),
         ("auxss", 500, (("strategy", '{"ema": 0.5}'),)): same(ramp(1000)),  # a variant never stands in for auxss
@@ -356,7 +355,7 @@ def test_findings_verdicts_against_hand_computed_criteria(tmp_path):
 
 
 def test_findings_say_which_runs_are_missing_and_when_a_claim_fails(tmp_path):
-    found, groups, curves = findings_for(tmp_path, {
+    found, groups = findings_for(tmp_path, {
         ("sac", 500, ()): same([0.0, 0.5, 0.9]),
         ("auxss", 500, ()): same([0.0, 0.0, 0.0]),
         ("jsrl", 500, ()): same([0.0, 0.9, 1.0]),
@@ -365,14 +364,25 @@ def test_findings_say_which_runs_are_missing_and_when_a_claim_fails(tmp_path):
     assert found[2].verdict == "not reproduced"  # AuxSS never reaches 0.8
     assert found[3].verdict == "missing runs" and found[3].measured == "no runs of hysac_auxss (0.5K), hysac (0.5K)"
     assert {f.verdict for n, f in found.items() if n >= 4} == {"missing runs"}
-    assert findings.demo_size_rows(groups, curves) == [] and findings.variant_rows(groups, curves) == []
+    assert findings.demo_size_rows(groups) == [] and findings.variant_rows(groups) == []
 
 
 def test_omega_that_learns_later_than_auxss_does_not_match_it_early(tmp_path):
     # first half (3 of 6 evaluations): Omega-SS's mean IQM p0 is 0.0, AuxSS's (0 + 0.5 + 1) / 3 = 0.5
-    found, _, _ = findings_for(tmp_path, {
+    found, _ = findings_for(tmp_path, {
         ("auxss", 500, ()): same([0.0, 0.5, 1.0, 1.0, 1.0, 1.0], [0.8] * 6),
         ("omega_ss", 500, ()): same([0.0, 0.0, 0.0, 1.0, 1.0, 1.0], [0.5] * 6),
     })
     assert found[4].verdict == "partly"  # behind from ood (0.5 < 0.8), but not matching early
     assert "first 3 evaluations (to step 3,000): Omega-SS 0.00, AuxSS 0.50" in found[4].measured
+
+
+def test_findings_compare_online_methods_up_to_the_step_all_of_them_have(tmp_path):
+    # Omega-SS has run 3 of 6 evaluations: AuxSS's later ood (0.9) must not be set against its 0.5
+    found, groups = findings_for(tmp_path, {
+        ("auxss", 500, ()): same([0.0, 1.0, 1.0, 1.0, 1.0, 1.0], [0.5, 0.5, 0.5, 0.9, 0.9, 0.9]),
+        ("omega_ss", 500, ()): same([0.0, 1.0, 1.0], [0.5, 0.5, 0.5]),
+    })
+    assert findings.common_step(groups) == 3000
+    assert found[4].verdict == "partly"  # at step 3,000 Omega-SS's ood equals AuxSS's: not behind
+    assert "IQM success from ood at the last: Omega-SS 0.50, AuxSS 0.50" in found[4].measured
