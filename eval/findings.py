@@ -198,8 +198,8 @@ def undirected_starts_slower(groups) -> Finding:
     if absent:
         return _missing(claim, 5, absent)
     median = {m: _median_steps(g) for m, g in chosen.items()}
-    fastest_safe = max(median["auxss"], median["omega_ss"])
-    passed = sum(math.isfinite(fastest_safe) and median[m] > fastest_safe for m in ("uniform_ss", "goaldist_ss"))
+    safety_based = max(median["auxss"], median["omega_ss"])  # slower must mean later than both
+    passed = sum(math.isfinite(safety_based) and median[m] > safety_based for m in ("uniform_ss", "goaldist_ss"))
     measured = "; ".join(_steps_text(g) for g in chosen.values())
     return Finding(5, claim, measured, _grade(passed, 2))
 
