@@ -202,6 +202,12 @@ class AuxSS(StartStrategy):
             `W[i]` that fraction of the way towards it (an exponential moving average over episodes).
         kernel_dims: "full" (the paper) measures distance on all four components; "position" on
             (x, y) only.
+        timeout_weight: None (the paper) scores an episode that runs the whole horizon without
+            reaching the goal like any other, `max((H - H) / H, delta) = delta`: the start looks safe
+            and is rarely drawn again. A number in [delta, 1] is the target for such timeouts
+            instead; 1.0 scores a timeout like an immediate failure, the test of whether AuxSS is slow
+            because it stops drawing the start-room states it cannot yet solve (docs/results.md). A
+            timeout is `L >= H` without success, so a lava touch on the very last step counts as one.
     """
 
     name = "auxss"
@@ -216,6 +222,7 @@ class AuxSS(StartStrategy):
         count_successes: bool = True,
         ema: float | None = None,
         kernel_dims: str = "full",
+        timeout_weight: float | None = None,
     ):
         super().__init__(states)
         if not (isinstance(horizon, (int, np.integer)) and horizon >= 1):
@@ -231,6 +238,9 @@ class AuxSS(StartStrategy):
         self.ema = None if ema is None else _positive("ema", ema, upper=1.0)
         self.count_successes = bool(count_successes)
         self.kernel_dims = kernel_dims
+        self.timeout_weight = None if timeout_weight is None else _positive("timeout_weight", timeout_weight, upper=1.0)
+        if self.timeout_weight is not None and self.timeout_weight < self.delta:
+            raise ValueError(f"timeout_weight must be in [delta, 1] = [{self.delta}, 1], got {timeout_weight!r}")
         self.state_scale = scale
         scaled = self._states / scale
         # the points distances are measured between: computed once, the states never change
@@ -248,6 +258,8 @@ class AuxSS(StartStrategy):
             return  # ablation: only lava and timeouts say anything about a state's safety
         W, H, L = self._weights, self.horizon, episode_length
         target = max((H - L) / H, self.delta)  # delta keeps every state sampleable
+        if self.timeout_weight is not None and L >= H and not success:
+            target = self.timeout_weight  # ablation: a timeout says the policy has not solved this start
         W[index] = target if self.ema is None else (1 - self.ema) * W[index] + self.ema * target
         lam = self.kernel_row(index)
         W[:] = (1 - lam) * W + lam * W[index]
@@ -408,7 +420,8 @@ class GoalDistSS(StartStrategy):
 # --- building by CLI name ---------------------------------------------------------------------
 STRATEGY_PARAMS: dict[str, tuple[str, ...]] = {
     "p0": (),
-    "auxss": ("horizon", "delta", "sigma", "state_scale", "count_successes", "ema", "kernel_dims"),
+    "auxss": ("horizon", "delta", "sigma", "state_scale", "count_successes", "ema", "kernel_dims",
+              "timeout_weight"),
     "omega_ss": ("omega", "env", "k", "rollouts", "seed", "clamp"),
     "uniform_ss": (),
     "goaldist_ss": ("goal", "temperature", "temperature_growth", "max_temperature"),

@@ -91,6 +91,28 @@ def test_auxss_count_successes_false_skips_goal_episodes():
     assert skipping.weights[0] == pytest.approx(0.9)
 
 
+def test_auxss_timeout_weight_scores_timeouts_only():
+    paper = AuxSS(THREE_STATES, horizon=100, sigma=0.3)
+    variant = AuxSS(THREE_STATES, horizon=100, sigma=0.3, timeout_weight=1.0)
+    for aux in (paper, variant):
+        aux.update(2, 30)  # lava at step 30: both score (100 - 30) / 100
+        assert aux.weights[2] == pytest.approx(0.7)
+    paper.update(0, 100)  # a timeout: the paper's formula gives the floor
+    variant.update(0, 100)
+    assert paper.weights[0] == pytest.approx(0.05)
+    assert variant.weights[0] == 1.0
+    # the kernel spreads the new W[0] as usual. S1 is sqrt(0.45) from S2 (lam = exp(-2.5)), so the
+    # lava episode left W[1] = 1 - 0.3 exp(-2.5); S1 is 0.3 from S0 (lam = exp(-0.5))
+    w1, lam = 1 - 0.3 * math.exp(-2.5), math.exp(-0.5)
+    assert paper.weights[1] == pytest.approx((1 - lam) * w1 + lam * 0.05)
+    assert variant.weights[1] == pytest.approx((1 - lam) * w1 + lam * 1.0)
+    variant.update(0, 100, success=True)  # reaching the goal on the last step is no timeout
+    assert variant.weights[0] == pytest.approx(0.05)
+    half = AuxSS(THREE_STATES, horizon=100, sigma=0.3, timeout_weight=0.5)
+    half.update(0, 100)
+    assert half.weights[0] == pytest.approx(0.5)
+
+
 def test_auxss_weights_view_is_read_only_and_live():
     aux = AuxSS(THREE_STATES)
     view = aux.weights
@@ -112,6 +134,8 @@ def test_auxss_effective_neighbourhood_counts_states_within_half_kernel():
     (dict(sigma=-1.0), "sigma"), (dict(sigma=float("nan")), "sigma"), (dict(horizon=0), "horizon"),
     (dict(ema=0.0), "ema"), (dict(kernel_dims="velocity"), "kernel_dims"),
     (dict(state_scale=(1, 1, 0, 1)), "state_scale"),
+    (dict(timeout_weight=1.5), "timeout_weight"), (dict(timeout_weight=0.0), "timeout_weight"),
+    (dict(timeout_weight=0.01, delta=0.05), r"timeout_weight must be in \[delta, 1\]"),
 ])
 def test_auxss_rejects_bad_parameters(params, match):
     with pytest.raises(ValueError, match=match):
@@ -288,8 +312,8 @@ def test_make_start_strategy_builds_each_name():
 
 def test_auxss_defaults_are_documented_values():
     aux = make_start_strategy("auxss", THREE_STATES)
-    assert (aux.horizon, aux.delta, aux.sigma, aux.ema, aux.count_successes, aux.kernel_dims) == \
-        (500, 0.05, 0.3, None, True, "full")
+    assert (aux.horizon, aux.delta, aux.sigma, aux.ema, aux.count_successes, aux.kernel_dims, aux.timeout_weight) == \
+        (500, 0.05, 0.3, None, True, "full", None)
 
 
 @pytest.mark.parametrize("name, params, match", [
