@@ -6,14 +6,25 @@ Each directory is a run directory (holding metrics.csv) or holds run directories
 --seeds batch). Per seed: the first evaluation step with success from p0 >= the threshold (0.8, the
 paper's steps-to-threshold), the best p0 success and its step, and p0 / ood success at the last
 evaluation. Per batch: how many seeds reached the threshold, and the means of the last evaluation.
+
+`--start-room STEP` adds the mean probability the start strategy put on candidate states inside the
+start room (where every p0 episode begins) over its logged evaluations up to STEP, from the run's
+start_weights.npz: docs/results.md's measure of how much a strategy still practises the p0 starts
+while it learns.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
+import json
 import math
 from pathlib import Path
+
+import numpy as np
+
+from lava_bridge_mj.layout import Layout
 
 THRESHOLD = 0.8
 
@@ -41,21 +52,44 @@ def seed_summary(rows: list[dict[str, float]], threshold: float = THRESHOLD) -> 
             "last_step": rows[-1]["step"], "last_p0": rows[-1]["success_p0"], "last_ood": rows[-1]["success_ood"]}
 
 
-def markdown(path: Path, threshold: float = THRESHOLD) -> str:
+def start_room_share(run_dir: Path, until: float) -> float:
+    """Mean probability of drawing a start-room candidate, over the evaluations logged at steps <=
+    `until`; nan when the run logged no candidate distribution that early (p0 methods log none)."""
+    path = run_dir / "start_weights.npz"
+    if not path.exists():
+        return math.nan
+    with np.load(path) as logged:
+        steps, states, probabilities = logged["steps"], logged["states"], logged["probabilities"]
+    early = steps <= until
+    if probabilities.size == 0 or not early.any():
+        return math.nan
+    env = json.loads((run_dir / "config.json").read_text()).get("env", {})
+    layout_fields = {f.name for f in dataclasses.fields(Layout)}
+    room = Layout(**{k: v for k, v in env.items() if k in layout_fields}).start_room
+    inside = (np.abs(states[:, 0] - room.x) <= room.half_x) & (np.abs(states[:, 1] - room.y) <= room.half_y)
+    return float(probabilities[early][:, inside].sum(axis=1).mean())
+
+
+def markdown(path: Path, threshold: float = THRESHOLD, start_room_until: float | None = None) -> str:
+    room = start_room_until is not None
     lines = [f"`{path}`", "",
-             f"| run | first step p0 >= {threshold:g} | best p0 (step) | p0 / ood at the last evaluation |",
-             "|---|---:|---:|---:|"]
-    summaries = []
+             f"| run | first step p0 >= {threshold:g} | best p0 (step) | p0 / ood at the last evaluation |"
+             + (f" start-room share to {start_room_until:,.0f} |" if room else ""),
+             "|---|---:|---:|---:|" + ("---:|" if room else "")]
+    summaries, shares = [], []
     for run in run_dirs(path):
         s = seed_summary(read_metrics(run), threshold)
         summaries.append(s)
         first = "never" if math.isnan(s["steps_to_threshold"]) else f"{s['steps_to_threshold']:,.0f}"
+        shares.append(start_room_share(run, start_room_until) if room else math.nan)
+        share = f" {shares[-1]:.2f} |" if room else ""
         lines.append(f"| {run.name} | {first} | {s['best_p0']:.2f} ({s['best_step']:,.0f}) | "
-                     f"{s['last_p0']:.2f} / {s['last_ood']:.2f} (at {s['last_step']:,.0f}) |")
+                     f"{s['last_p0']:.2f} / {s['last_ood']:.2f} (at {s['last_step']:,.0f}) |" + share)
     solved = sum(not math.isnan(s["steps_to_threshold"]) for s in summaries)
     mean = lambda key: sum(s[key] for s in summaries) / len(summaries)  # noqa: E731
     lines.append(f"| **all {len(summaries)}** | {solved} of {len(summaries)} reached it | "
-                 f"mean {mean('best_p0'):.2f} | mean {mean('last_p0'):.2f} / {mean('last_ood'):.2f} |")
+                 f"mean {mean('best_p0'):.2f} | mean {mean('last_p0'):.2f} / {mean('last_ood'):.2f} |"
+                 + (f" mean {np.mean(shares):.2f} |" if room else ""))
     return "\n".join(lines)
 
 
@@ -63,12 +97,16 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("dirs", nargs="+", type=Path, help="run directories or directories of them")
     parser.add_argument("--threshold", type=float, default=THRESHOLD, help="p0 success that counts as solved")
+    parser.add_argument("--start-room", type=float, metavar="STEP", dest="start_room_until",
+                        help="add each run's mean start-room share of its start distribution up to STEP")
     args = parser.parse_args(argv)
+    if args.start_room_until is not None and not args.start_room_until > 0:
+        parser.error(f"--start-room must be a step > 0, got {args.start_room_until}")
     for path in args.dirs:
         if not path.is_dir():
             parser.error(f"{path} is not a directory")
         try:
-            print(markdown(path, args.threshold), end="\n\n")
+            print(markdown(path, args.threshold, args.start_room_until), end="\n\n")
         except ValueError as error:
             parser.error(str(error))
 

@@ -2,6 +2,7 @@
 
 import csv
 
+import numpy as np
 import pytest
 
 from lava_bridge_mj.eval import summary
@@ -31,3 +32,38 @@ def test_summary_refuses_a_directory_without_runs(tmp_path, capsys):
     with pytest.raises(SystemExit):
         summary.main([str(tmp_path)])
     assert "holds no metrics.csv" in capsys.readouterr().err
+
+
+def test_start_room_share_by_hand(tmp_path):
+    """Two candidates in the start room (x in [-5.5, -1.5] on the default layout), one on the bridge, one
+    in the goal room; the share averages the logged evaluations up to the given step."""
+    run = tmp_path / "seed0"
+    write_run(run, [0.0, 0.0, 1.0], [0.0, 0.0, 0.5])
+    (run / "config.json").write_text('{"env": {}}')
+    states = np.array([[-4.0, 1.0, 0, 0], [-1.6, -1.9, 2.0, 0], [0.0, 0.0, 0, 0], [3.0, 0.0, 0, 0]])
+    probabilities = np.array([[0.1, 0.2, 0.3, 0.4], [0.4, 0.4, 0.1, 0.1], [0.0, 0.0, 0.5, 0.5]])
+    np.savez(run / "start_weights.npz", steps=np.array([1000, 2000, 3000]), states=states, probabilities=probabilities)
+    assert summary.start_room_share(run, 2000) == pytest.approx((0.3 + 0.8) / 2)
+    assert summary.start_room_share(run, 3000) == pytest.approx((0.3 + 0.8 + 0.0) / 3)
+    assert np.isnan(summary.start_room_share(run, 500))  # nothing logged that early
+    text = summary.markdown(tmp_path, start_room_until=2000)
+    assert "| seed0 | 3,000 | 1.00 (3,000) | 1.00 / 0.50 (at 3,000) | 0.55 |" in text
+    assert text.splitlines()[-1].endswith("| mean 0.55 |")
+    # a narrower maze moves the start room: the layout comes from the run's own env settings
+    (run / "config.json").write_text('{"env": {"bridge_length": 4.0}}')  # start room now x in [-6, -2]
+    assert summary.start_room_share(run, 1000) == pytest.approx(0.1)
+
+
+def test_start_room_share_is_nan_for_p0_runs(tmp_path):
+    run = tmp_path / "seed0"
+    write_run(run, [0.0], [0.0])
+    (run / "config.json").write_text("{}")
+    np.savez(run / "start_weights.npz", steps=np.array([1000]), states=np.zeros((3, 4)), probabilities=np.zeros((1, 0)))
+    assert np.isnan(summary.start_room_share(run, 1000))
+
+
+def test_start_room_needs_a_positive_step(tmp_path, capsys):
+    write_run(tmp_path / "seed0", [0.0], [0.0])
+    with pytest.raises(SystemExit):
+        summary.main([str(tmp_path), "--start-room", "0"])
+    assert "--start-room must be a step > 0, got 0.0" in capsys.readouterr().err
