@@ -6,10 +6,12 @@ A run is any directory, at any depth under the one given, that holds both `confi
 **Groups.** Runs are grouped by method and demo set first, labelled like `auxss (0.5K)`. Runs of one
 method and demo set whose configurations differ in anything else (every config.json entry but `seed`
 and `steps`, nested sections flattened to dotted names such as `strategy.sigma` or `sac.hidden_sizes`) are split
-further, and the entries that differ are added to the label: `auxss (0.5K) [strategy.sigma=0.2]`, with
-`default` for a run that leaves the entry out. An entry a config.json lacks because it predates the
-field counts as RunConfig's current default. A group therefore holds the seeds of exactly one
-configuration, never a mix. `steps` is a budget, not a configuration: a run extended from 100,000 to
+further (`Group.settings` holds the entries that differ, `default` standing for a run that leaves a
+free-form entry such as `strategy.sigma` out). The label names the entries that are not RunConfig's
+defaults: `auxss (0.5K) [strategy.sigma=0.2]` beside plain `auxss (0.5K)`, so the default
+configuration always reads as the method itself, and two groups never share a label. An entry a
+config.json lacks because it predates the field counts as RunConfig's current default. A group
+therefore holds the seeds of exactly one configuration, never a mix. `steps` is a budget, not a configuration: a run extended from 100,000 to
 300,000 steps has the same first evaluations as one stopped at 100,000 (eval/runner.py), so both
 join one group. `find_runs(root, budget=N)` keeps only evaluations at or before step N, which puts
 runs of different budgets on one footing (steps to threshold included); `seeds=` keeps only those seeds.
@@ -139,7 +141,10 @@ class Group:
 
     @property
     def label(self) -> str:
-        extra = ", ".join(f"{k}={v}" for k, v in self.settings.items())
+        from lava_bridge_mj.eval.runner import RunConfig
+
+        defaults = _flatten(RunConfig().to_dict())
+        extra = ", ".join(f"{k}={v}" for k, v in self.settings.items() if v != defaults.get(k, "default"))
         return f"{self.method} ({demos_label(self.demos)})" + (f" [{extra}]" if extra else "")
 
     @property

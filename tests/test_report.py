@@ -147,9 +147,27 @@ def test_groups_by_config_not_by_directory_names_at_any_depth(tmp_path):
     groups = aggregate.group_runs(aggregate.find_runs(tmp_path))
     labels = {g.label: g.seeds for g in groups}
     assert labels == {"hysac (0.5K)": [0, 1], "auxss (7.5K)": [0],
-                      "auxss (0.5K) [strategy.sigma=0.2]": [0, 1], "auxss (0.5K) [strategy.sigma=default]": [0]}
+                      "auxss (0.5K) [strategy.sigma=0.2]": [0, 1], "auxss (0.5K)": [0]}
     # in the runner's method order (auxss before hysac), then demo set
     assert [g.method for g in groups] == sorted((g.method for g in groups), key=METHODS.index)
+
+
+def test_labels_name_only_what_differs_from_the_defaults(tmp_path):
+    # the LayerNorm variant beside HySAC as configured by default: both configs spell the entry out
+    sac = RunConfig().to_dict()["sac"]
+    write_run(tmp_path / "a" / "seed0", method="hysac", sac={**sac, "critic_layer_norm": False})
+    write_run(tmp_path / "b" / "seed0", method="hysac", sac={**sac, "critic_layer_norm": True})
+    # a free-form strategy entry set on one group and left out by the other
+    write_run(tmp_path / "c" / "seed0", method="auxss", strategy={"ema": 0.5, "kernel_dims": "full"})
+    write_run(tmp_path / "d" / "seed0", method="auxss")
+    groups = aggregate.group_runs(aggregate.find_runs(tmp_path))
+    assert {g.label: g.settings for g in groups} == {
+        "hysac (0.5K)": {"sac.critic_layer_norm": "false"},
+        "hysac (0.5K) [sac.critic_layer_norm=true]": {"sac.critic_layer_norm": "true"},
+        # kernel_dims="full" is not RunConfig's default (a free-form entry has none), so it is named
+        'auxss (0.5K) [strategy.ema=0.5, strategy.kernel_dims="full"]':
+            {"strategy.ema": "0.5", "strategy.kernel_dims": '"full"'},
+        "auxss (0.5K)": {"strategy.ema": "default", "strategy.kernel_dims": "default"}}
 
 
 def test_a_budget_puts_runs_extended_further_on_one_footing_with_the_others(tmp_path):
@@ -257,7 +275,7 @@ def test_report_of_several_directories_and_a_run_given_twice(tmp_path, capsys):
                         "--reps", "50"]) == 0
     text = (out / "report.md").read_text()
     assert text.startswith(f"# LavaBridge-v0 report: `{tmp_path / 'protocol'}`, `{tmp_path / 'ablations'}`")
-    assert "| auxss (0.5K) [strategy.ema=0.5] | 1: 0 |" in text and "[strategy.ema=default] | 1: 0 |" in text
+    assert "| auxss (0.5K) [strategy.ema=0.5] | 1: 0 |" in text and "| auxss (0.5K) | 1: 0 |" in text
     # the same run reached twice would count its seed twice: refused, naming both paths
     assert report.main([str(tmp_path / "protocol"), str(tmp_path / "protocol" / "auxss"), "--out",
                         str(tmp_path / "twice")]) == 2
