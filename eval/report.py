@@ -173,9 +173,12 @@ def save_figure(fig, out: Path, name: str) -> list[Path]:
     from lava_bridge_mj.eval.atomic import atomic_write
 
     paths = []
+    # no creation date in the PDF: the same data must give the same bytes, or every `make report`
+    # shows every figure as changed
+    metadata = {"png": None, "pdf": {"CreationDate": None}}
     for kind in ("png", "pdf"):
         path = out / f"{name}.{kind}"
-        atomic_write(path, lambda f: fig.savefig(f, format=kind, dpi=130))
+        atomic_write(path, lambda f: fig.savefig(f, format=kind, dpi=130, metadata=metadata[kind]))
         paths.append(path)
     _pyplot().close(fig)
     return paths

@@ -252,6 +252,18 @@ def test_report_writes_every_figure_and_the_markdown(tmp_path, capsys):
     assert "start weights" in text and "seed 0" in text
 
 
+def test_report_figures_are_byte_identical_when_regenerated(tmp_path):
+    # no timestamps: the committed docs/report* figures change only when their data does
+    for seed in (0, 1):
+        write_run(tmp_path / "runs" / f"seed{seed}", seed=seed, p0=[0.0, 0.5, 0.9], weights=True)
+    outputs = []
+    for out in ("a", "b"):
+        assert report.main([str(tmp_path / "runs"), "--reps", "50", "--out", str(tmp_path / out)]) == 0
+        outputs.append({p.name: p.read_bytes() for p in (tmp_path / out).iterdir()})
+    assert any(name.endswith(".pdf") for name in outputs[0])
+    assert outputs[0] == outputs[1]
+
+
 def test_report_budget_and_seeds_select_evaluations_and_runs(tmp_path, capsys):
     sweep = tmp_path / "sweep"
     for seed in (0, 1, 2):
