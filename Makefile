@@ -29,7 +29,8 @@ bench: setup
 # every method at the 100k protocol budget, AuxSS and SAC at the paper's 300k, and the AuxSS ablations.
 report: setup
 	$(BIN)/lava-bridge-bench report results/protocol --budget 100000 --out docs/report
-	$(BIN)/lava-bridge-bench report results/protocol/auxss-d500 results/protocol/sac-d500 --seeds 0-4 --out docs/report_300k
+	$(BIN)/lava-bridge-bench report results/protocol/auxss-d500 results/protocol/sac-d500 results/protocol/omega_ss-d500 --seeds 0-4 \
+	    --out docs/report_300k
 	$(BIN)/lava-bridge-bench report results/protocol/auxss-d500 results/ablations --budget 100000 --seeds 0-4 \
 	    --out docs/report_ablations
 
