@@ -38,6 +38,7 @@ enters is therefore infinite ("not reached"), rather than an optimistic number o
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import math
 from collections import defaultdict
@@ -129,6 +130,14 @@ def _flatten(values: dict[str, Any], prefix: str = "") -> dict[str, str]:
     return flat
 
 
+@functools.cache
+def default_settings() -> dict[str, str]:
+    """RunConfig's defaults, flattened to dotted names like a config.json's entries."""
+    from lava_bridge_mj.eval.runner import RunConfig
+
+    return _flatten(RunConfig().to_dict())
+
+
 @dataclasses.dataclass
 class Group:
     """The seeds of one configuration. `settings` holds the config entries (dotted names, JSON text)
@@ -140,11 +149,14 @@ class Group:
     runs: list[RunRecord]
 
     @property
-    def label(self) -> str:
-        from lava_bridge_mj.eval.runner import RunConfig
+    def changed_settings(self) -> dict[str, str]:
+        """The settings that are not RunConfig's defaults: empty for the default configuration."""
+        defaults = default_settings()
+        return {k: v for k, v in self.settings.items() if v != defaults.get(k, "default")}
 
-        defaults = _flatten(RunConfig().to_dict())
-        extra = ", ".join(f"{k}={v}" for k, v in self.settings.items() if v != defaults.get(k, "default"))
+    @property
+    def label(self) -> str:
+        extra = ", ".join(f"{k}={v}" for k, v in self.changed_settings.items())
         return f"{self.method} ({demos_label(self.demos)})" + (f" [{extra}]" if extra else "")
 
     @property
@@ -175,10 +187,10 @@ class Group:
 def group_runs(runs: list[RunRecord]) -> list[Group]:
     """Runs grouped by configuration (see the module docstring), in the runner's method order, then
     demo set, then label; each group's runs in seed order."""
-    from lava_bridge_mj.eval.runner import METHODS, RunConfig
+    from lava_bridge_mj.eval.runner import METHODS
 
     # an entry a config.json lacks (written before the field existed) counts as today's default
-    defaults = _flatten(RunConfig().to_dict())
+    defaults = default_settings()
     by_base: dict[tuple[str, int], list[RunRecord]] = defaultdict(list)
     for run in runs:
         by_base[run.method, run.demos].append(run)

@@ -44,7 +44,7 @@ import math
 
 import numpy as np
 
-from lava_bridge_mj.eval.aggregate import Group, _flatten, demos_label, iqm, steps_to_threshold
+from lava_bridge_mj.eval.aggregate import Group, demos_label, iqm, steps_to_threshold
 
 REPRODUCED, PARTLY, NOT, MISSING = "reproduced", "partly", "not reproduced", "missing runs"
 TOLERANCE = 1e-9
@@ -62,10 +62,7 @@ class Finding:
 
 def is_default(group: Group) -> bool:
     """True when every setting that sets the group apart is RunConfig's default."""
-    from lava_bridge_mj.eval.runner import RunConfig
-
-    defaults = _flatten(RunConfig().to_dict())
-    return all(value == defaults.get(name, "default") for name, value in group.settings.items())
+    return not group.changed_settings
 
 
 def pick(groups: list[Group], method: str, demos: int = 500) -> Group | None:
