@@ -4,6 +4,7 @@ A run directory holds:
     config.json         the full configuration (a resumed run must match it)
     metrics.csv         one row per evaluation: steps, success from p0 and ood, returns, SAC stats
     start_weights.npz   the start strategy's candidate states and its weights at every evaluation
+    episodes.csv        one row per training episode (online methods): where it started, how it ended
     checkpoint.pt       the latest checkpoint: everything needed to continue exactly
     checkpoint.prev.pt  the one before it (see below)
     policies/step_N.pt  the actor's weights at every evaluation (for videos and later analysis)
@@ -79,9 +80,13 @@ METHODS = tuple(METHOD_STRATEGIES)
 METRIC_FIELDS = ("step", "episodes", "success_p0", "success_ood", "return_p0", "return_ood",
                  "train_return", "train_success", "q_mean", "alpha", "critic_loss", "actor_loss", "guide_horizon",
                  "wall_time")
+EPISODE_FIELDS = ("episode", "step", "start_index", "start_x", "start_y", "length", "success", "return")
+"""episodes.csv: the episode's number (1-based), the training step it ended at, the candidate state it
+started from (-1: the env's own p0 start) and that start's position, its length, whether it reached
+the goal, its return. What separates 'never tried from there' from 'tried and failed' per start."""
 CHECKPOINT_VERSION = 3  # 3: optimisers in two parameter groups (seed_adam)
 CHECKPOINTS = ("checkpoint.pt", "checkpoint.prev.pt")
-RUN_FILES = ("config.json", "metrics.csv", "start_weights.npz", *CHECKPOINTS, "final.pt", "rollouts.mp4")
+RUN_FILES = ("config.json", "metrics.csv", "start_weights.npz", "episodes.csv", *CHECKPOINTS, "final.pt", "rollouts.mp4")
 """What a run directory holds besides policies/: what --overwrite removes."""
 
 
@@ -266,13 +271,15 @@ class SeedRun:
         self.rows: list[dict[str, float]] = []
         self.weight_history: list[np.ndarray] = []
         self.recent: list[tuple[float, bool]] = []  # (return, success) of training episodes since the last eval
+        self.episode_log: list[tuple] = []  # one EPISODE_FIELDS row per finished training episode
+        self.episode_start = (float("nan"), float("nan"))  # the running episode's start position (x, y)
         self.last_update: dict[str, float] = {}
         self.obs: np.ndarray | None = None  # set by Run's first reset
 
-    def observe(self, action: np.ndarray, reward: float, next_obs: np.ndarray, terminated: bool,
+    def observe(self, step: int, action: np.ndarray, reward: float, next_obs: np.ndarray, terminated: bool,
                 truncated: bool, success: bool) -> bool:
-        """Store one env step's transition; True when the episode ended (the Run then resets this
-        seed's env to a start its strategy chooses)."""
+        """Store the transition of training step `step` (1-based); True when the episode ended (the
+        Run then resets this seed's env to a start its strategy chooses)."""
         self.buffer.add(self.obs, action, reward, next_obs, terminated)
         self.episode_return += reward
         self.obs = next_obs
@@ -281,6 +288,8 @@ class SeedRun:
         if ended:
             self.episodes += 1
             self.recent.append((self.episode_return, bool(success)))
+            self.episode_log.append((self.episodes, step, int(self.selector.start_index), *self.episode_start,
+                                     self.selector.episode_length, int(bool(success)), float(self.episode_return)))
             if self.curriculum is not None:
                 self.curriculum.record(success)
             self.episode_return = 0.0
@@ -334,6 +343,12 @@ class SeedRun:
         weights = np.array(self.weight_history).reshape(len(steps), -1)
         atomic_write(self.dir / "start_weights.npz",
                      lambda f: np.savez(f, steps=steps, states=self.states, probabilities=weights))
+        if self.config.method not in OFFLINE_METHODS:  # offline methods run no episodes
+            text = io.StringIO()
+            writer = csv.writer(text, lineterminator="\n")
+            writer.writerow(EPISODE_FIELDS)
+            writer.writerows(self.episode_log)
+            atomic_write_text(self.dir / "episodes.csv", text.getvalue())
 
     def state(self, step: int, elapsed: float, agent: dict) -> dict:
         """This seed's checkpoint at `step`, mid-episode: the physics state and the episode's step
@@ -345,6 +360,7 @@ class SeedRun:
             "step": step, "episodes": self.episodes, "elapsed": elapsed,
             "rows": self.rows, "weight_history": self.weight_history,
             "recent": self.recent, "last_update": self.last_update,
+            "episode_log": self.episode_log, "episode_start": self.episode_start,
             "agent": agent,
             "buffer": self.buffer.state_dict(),
             "wrapper": self.selector.state_dict(),
@@ -370,6 +386,9 @@ class SeedRun:
         self.episodes = state["episodes"]
         self.rows, self.weight_history = state["rows"], state["weight_history"]
         self.recent, self.last_update = state["recent"], state["last_update"]
+        # checkpoints from before the episode log have none: the log then starts at the resume
+        self.episode_log = state.get("episode_log", [])
+        self.episode_start = state.get("episode_start", (float("nan"), float("nan")))
         self.buffer.load_state_dict(state["buffer"])
         envs, i = self.envs, self.index
         mask = np.arange(envs.num_envs) == i
@@ -483,9 +502,9 @@ class Run:
                         actions = [g if use else a for use, g, a in zip(guided, guide_actions, actions)]
                 actions = np.asarray(actions, dtype=np.float32)
                 next_obs, rewards, terminated, truncated, info = self.envs.step(actions)
-                ended = np.array([s.observe(a, r, o, term, trunc, success) for s, a, r, o, term, trunc, success
-                                  in zip(seed_runs, actions, rewards, next_obs, terminated, truncated,
-                                         info["is_success"])])
+                ended = np.array([s.observe(self.step + 1, a, r, o, term, trunc, success)
+                                  for s, a, r, o, term, trunc, success in zip(
+                                      seed_runs, actions, rewards, next_obs, terminated, truncated, info["is_success"])])
                 if ended.any():
                     self._start_episodes(ended)
             self.step += 1
@@ -527,6 +546,7 @@ class Run:
         for seed_run, m, o in zip(self.seed_runs, mask, obs):
             if m:
                 seed_run.obs = o
+                seed_run.episode_start = (float(o[0]), float(o[1]))
 
     def _train_guide(self) -> None:
         """JSRL: fit the guide (BC or IQL) to the demo transitions, each seed with its own sampling stream."""

@@ -10,7 +10,9 @@ evaluation. Per batch: how many seeds reached the threshold, and the means of th
 `--start-room STEP` adds the mean probability the start strategy put on candidate states inside the
 start room (where every p0 episode begins) over its logged evaluations up to STEP, from the run's
 start_weights.npz: docs/results.md's measure of how much a strategy still practises the p0 starts
-while it learns.
+while it learns. Where the run logged its training episodes (episodes.csv), it also adds how many
+training episodes started in the start room up to STEP and what share of them reached the goal:
+whether a seed that does not learn from p0 never tried from there, or tried and failed.
 """
 
 from __future__ import annotations
@@ -52,6 +54,34 @@ def seed_summary(rows: list[dict[str, float]], threshold: float = THRESHOLD) -> 
             "last_step": rows[-1]["step"], "last_p0": rows[-1]["success_p0"], "last_ood": rows[-1]["success_ood"]}
 
 
+def start_room(run_dir: Path) -> tuple[float, float, float, float]:
+    """The run's start room as (x, y, half_x, half_y), from its configured layout."""
+    env = json.loads((run_dir / "config.json").read_text()).get("env", {})
+    layout_fields = {f.name for f in dataclasses.fields(Layout)}
+    room = Layout(**{k: v for k, v in env.items() if k in layout_fields}).start_room
+    return room.x, room.y, room.half_x, room.half_y
+
+
+def in_start_room(run_dir: Path, positions: np.ndarray) -> np.ndarray:
+    x, y, half_x, half_y = start_room(run_dir)
+    return (np.abs(positions[:, 0] - x) <= half_x) & (np.abs(positions[:, 1] - y) <= half_y)
+
+
+def start_room_episodes(run_dir: Path, until: float) -> tuple[int, float]:
+    """(training episodes that started in the start room and ended at steps <= `until`, the share of
+    them that reached the goal); (0, nan) when the run has no episode log or no such episode."""
+    path = run_dir / "episodes.csv"
+    if not path.exists():
+        return 0, math.nan
+    with open(path) as f:
+        log = [row for row in csv.DictReader(f) if float(row["step"]) <= until]
+    if not log:
+        return 0, math.nan
+    starts = np.array([[float(r["start_x"]), float(r["start_y"])] for r in log])
+    success = np.array([float(r["success"]) for r in log])[in_start_room(run_dir, starts)]
+    return len(success), float(success.mean()) if len(success) else math.nan
+
+
 def start_room_share(run_dir: Path, until: float) -> float:
     """Mean probability of drawing a start-room candidate, over the evaluations logged at steps <=
     `until`; nan when the run logged no candidate distribution that early (p0 methods log none)."""
@@ -63,34 +93,45 @@ def start_room_share(run_dir: Path, until: float) -> float:
     early = steps <= until
     if probabilities.size == 0 or not early.any():
         return math.nan
-    env = json.loads((run_dir / "config.json").read_text()).get("env", {})
-    layout_fields = {f.name for f in dataclasses.fields(Layout)}
-    room = Layout(**{k: v for k, v in env.items() if k in layout_fields}).start_room
-    inside = (np.abs(states[:, 0] - room.x) <= room.half_x) & (np.abs(states[:, 1] - room.y) <= room.half_y)
-    return float(probabilities[early][:, inside].sum(axis=1).mean())
+    return float(probabilities[early][:, in_start_room(run_dir, states)].sum(axis=1).mean())
 
 
 def markdown(path: Path, threshold: float = THRESHOLD, start_room_until: float | None = None) -> str:
     room = start_room_until is not None
     lines = [f"`{path}`", "",
              f"| run | first step p0 >= {threshold:g} | best p0 (step) | p0 / ood at the last evaluation |"
-             + (f" start-room share to {start_room_until:,.0f} |" if room else ""),
-             "|---|---:|---:|---:|" + ("---:|" if room else "")]
-    summaries, shares = [], []
+             + (f" start-room share to {start_room_until:,.0f} | start-room training episodes (success) |"
+                if room else ""),
+             "|---|---:|---:|---:|" + ("---:|---:|" if room else "")]
+    summaries, shares, episodes = [], [], []
     for run in run_dirs(path):
         s = seed_summary(read_metrics(run), threshold)
         summaries.append(s)
         first = "never" if math.isnan(s["steps_to_threshold"]) else f"{s['steps_to_threshold']:,.0f}"
         shares.append(start_room_share(run, start_room_until) if room else math.nan)
-        share = f" {shares[-1]:.2f} |" if room else ""
+        episodes.append(start_room_episodes(run, start_room_until) if room else (0, math.nan))
+        count, success = episodes[-1]
+        share = f" {_number(shares[-1])} | {count} ({_number(success)}) |" if room else ""
         lines.append(f"| {run.name} | {first} | {s['best_p0']:.2f} ({s['best_step']:,.0f}) | "
                      f"{s['last_p0']:.2f} / {s['last_ood']:.2f} (at {s['last_step']:,.0f}) |" + share)
     solved = sum(not math.isnan(s["steps_to_threshold"]) for s in summaries)
     mean = lambda key: sum(s[key] for s in summaries) / len(summaries)  # noqa: E731
     lines.append(f"| **all {len(summaries)}** | {solved} of {len(summaries)} reached it | "
                  f"mean {mean('best_p0'):.2f} | mean {mean('last_p0'):.2f} / {mean('last_ood'):.2f} |"
-                 + (f" mean {np.mean(shares):.2f} |" if room else ""))
+                 + (f" mean {_number(np.mean(shares))} | {_pooled(episodes)} |" if room else ""))
     return "\n".join(lines)
+
+
+def _number(value: float) -> str:
+    return "-" if math.isnan(value) else f"{value:.2f}"
+
+
+def _pooled(episodes: list[tuple[int, float]]) -> str:
+    """All seeds' start-room training episodes together: their count and success share."""
+    total = sum(count for count, _ in episodes)
+    if total == 0:
+        return "0 (-)"
+    return f"{total} ({_number(sum(count * success for count, success in episodes if count) / total)})"
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -98,7 +139,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("dirs", nargs="+", type=Path, help="run directories or directories of them")
     parser.add_argument("--threshold", type=float, default=THRESHOLD, help="p0 success that counts as solved")
     parser.add_argument("--start-room", type=float, metavar="STEP", dest="start_room_until",
-                        help="add each run's mean start-room share of its start distribution up to STEP")
+                        help="add each run's mean start-room share of its start distribution, and its "
+                             "start-room training episodes and their success, up to STEP")
     args = parser.parse_args(argv)
     if args.start_room_until is not None and not args.start_room_until > 0:
         parser.error(f"--start-room must be a step > 0, got {args.start_room_until}")

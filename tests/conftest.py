@@ -36,9 +36,10 @@ def metrics_without_wall_time(run_dir):
 
 
 def interrupted_copy(full_dir, resumed_dir):
-    """What a run killed mid-way leaves: config, the metrics written so far (with rows past the
-    checkpoint), and the checkpoint before the last one as its latest."""
+    """What a run killed mid-way leaves: config, the metrics and episode log written so far (with rows
+    past the checkpoint), and the checkpoint before the last one as its latest."""
     resumed_dir.mkdir()
-    for name in ("config.json", "metrics.csv"):
-        shutil.copy(full_dir / name, resumed_dir / name)
+    for name in ("config.json", "metrics.csv", "episodes.csv"):
+        if (full_dir / name).exists():
+            shutil.copy(full_dir / name, resumed_dir / name)
     shutil.copy(full_dir / "checkpoint.prev.pt", resumed_dir / "checkpoint.pt")

@@ -60,8 +60,8 @@ def test_the_guide_acts_for_exactly_h_steps_then_the_learner(tmp_path, monkeypat
     run.guide_trained = True
     taken = []
     original_observe = seed_run.observe
-    monkeypatch.setattr(seed_run, "observe", lambda action, *rest: (taken.append(np.array(action)),
-                                                                    original_observe(action, *rest))[1])
+    monkeypatch.setattr(seed_run, "observe", lambda step, action, *rest: (taken.append(np.array(action)),
+                                                                          original_observe(step, action, *rest))[1])
     monkeypatch.setattr(run.config.sac, "learning_starts", 0)
     run.config.steps = 25
     run._train(progress=False)

@@ -15,7 +15,7 @@ from conftest import interrupted_copy, metrics_without_wall_time
 
 from lava_bridge_mj.agents.sac import SACConfig
 from lava_bridge_mj.eval import cli
-from lava_bridge_mj.eval.runner import METHOD_STRATEGIES, METHODS, METRIC_FIELDS, Run, RunConfig, train
+from lava_bridge_mj.eval.runner import EPISODE_FIELDS, METHOD_STRATEGIES, METHODS, METRIC_FIELDS, Run, RunConfig, train
 
 TINY_SAC = SACConfig(hidden_sizes=(16, 16), batch_size=32, buffer_size=500, learning_starts=100)
 
@@ -53,6 +53,32 @@ def test_every_method_writes_a_complete_run_directory(tmp_path, method):
     assert run.step == 300
 
 
+@pytest.mark.parametrize("method, steps", [("auxss", 600), ("sac", 1200)])  # p0 episodes run up to 500 steps
+def test_the_episode_log_accounts_for_every_training_step_and_start(tmp_path, method, steps):
+    config = tiny_config(method, steps=steps)
+    run = train(config, tmp_path, progress=False)
+    with open(tmp_path / "episodes.csv") as f:
+        log = list(csv.DictReader(f))
+    assert list(log[0]) == list(EPISODE_FIELDS)
+    assert len(log) == int(read_metrics(tmp_path / "metrics.csv")[-1]["episodes"]) > 1
+    episode, step, index, length = (np.array([int(r[k]) for r in log]) for k in ("episode", "step", "start_index",
+                                                                                   "length"))
+    assert episode.tolist() == list(range(1, len(log) + 1))
+    # one env, stepped once per training step: each episode ends `length` steps after the one before
+    np.testing.assert_array_equal(np.diff(step, prepend=0), length)
+    assert step[-1] <= config.steps and (length <= 500).all()
+    success = np.array([int(r["success"]) for r in log])
+    # the goal's +1 is the only non-zero reward (lava 0), so an episode's return is its success
+    np.testing.assert_array_equal([float(r["return"]) for r in log], success)
+    start = np.array([[float(r["start_x"]), float(r["start_y"])] for r in log])
+    if method == "sac":
+        assert (index == -1).all()
+        assert np.isfinite(start).all() and (start[:, 0] < 0).all(), "p0 starts lie in the start room (x < 0)"
+    else:  # a candidate start resets the ball exactly onto that demo state's position
+        assert ((0 <= index) & (index < config.demo_subset)).all()
+        np.testing.assert_array_equal(start, run.seed_runs[0].states[index, :2])
+
+
 def test_auxss_weights_move_during_training(tmp_path):
     train(tiny_config("auxss", steps=300), tmp_path, progress=False)
     probabilities = np.load(tmp_path / "start_weights.npz")["probabilities"]
@@ -80,6 +106,7 @@ def test_resume_from_checkpoint_equals_uninterrupted_run(tmp_path, method):
     resumed = train(config, resumed_dir, resume=True, progress=False)
 
     assert metrics_without_wall_time(resumed_dir) == metrics_without_wall_time(tmp_path / "full")
+    assert (resumed_dir / "episodes.csv").read_text() == (tmp_path / "full/episodes.csv").read_text()
     for name, tensor in full.agent.actor.state_dict().items():
         assert torch.equal(tensor, resumed.agent.actor.state_dict()[name]), name
     np.testing.assert_array_equal(full.strategy.weights, resumed.strategy.weights)
@@ -168,10 +195,12 @@ def test_cli_runs_a_tiny_training_job(tmp_path, capsys):
 # --- several seeds in one batch ----------------------------------------------------------------------
 
 def seed_files(directory):
-    """What a seed's results are: metrics (without wall time), start weights and policy snapshots."""
+    """What a seed's results are: metrics (without wall time), start weights, policy snapshots and
+    the episode log."""
     weights = np.load(directory / "start_weights.npz")
     policies = {p.name: torch.load(p) for p in sorted((directory / "policies").iterdir())}
-    return metrics_without_wall_time(directory), weights["probabilities"], policies
+    return (metrics_without_wall_time(directory), weights["probabilities"], policies,
+            (directory / "episodes.csv").read_text())
 
 
 @pytest.mark.parametrize("method", ["auxss", "sac"])
@@ -182,7 +211,7 @@ def test_a_seed_trained_in_a_batch_writes_what_it_writes_alone(tmp_path, method,
     run = train(config, dirs, seeds=[1, 3, 4], progress=False)
     assert run.agent.seeds == (1, 3, 4)
     alone, batched = seed_files(tmp_path / "alone"), seed_files(dirs[1])
-    assert alone[0] == batched[0]
+    assert alone[0] == batched[0] and alone[3] == batched[3]
     np.testing.assert_array_equal(alone[1], batched[1])
     assert alone[2].keys() == batched[2].keys()
     for name in alone[2]:

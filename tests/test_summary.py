@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from lava_bridge_mj.eval import summary
-from lava_bridge_mj.eval.runner import METRIC_FIELDS
+from lava_bridge_mj.eval.runner import EPISODE_FIELDS, METRIC_FIELDS
 
 
 def write_run(directory, p0, ood):
@@ -47,8 +47,8 @@ def test_start_room_share_by_hand(tmp_path):
     assert summary.start_room_share(run, 3000) == pytest.approx((0.3 + 0.8 + 0.0) / 3)
     assert np.isnan(summary.start_room_share(run, 500))  # nothing logged that early
     text = summary.markdown(tmp_path, start_room_until=2000)
-    assert "| seed0 | 3,000 | 1.00 (3,000) | 1.00 / 0.50 (at 3,000) | 0.55 |" in text
-    assert text.splitlines()[-1].endswith("| mean 0.55 |")
+    assert "| seed0 | 3,000 | 1.00 (3,000) | 1.00 / 0.50 (at 3,000) | 0.55 | 0 (-) |" in text  # no episode log
+    assert text.splitlines()[-1].endswith("| mean 0.55 | 0 (-) |")
     # a narrower maze moves the start room: the layout comes from the run's own env settings
     (run / "config.json").write_text('{"env": {"bridge_length": 4.0}}')  # start room now x in [-6, -2]
     assert summary.start_room_share(run, 1000) == pytest.approx(0.1)
@@ -67,3 +67,29 @@ def test_start_room_needs_a_positive_step(tmp_path, capsys):
     with pytest.raises(SystemExit):
         summary.main([str(tmp_path), "--start-room", "0"])
     assert "--start-room must be a step > 0, got 0.0" in capsys.readouterr().err
+
+
+def write_episodes(run, rows):
+    with open(run / "episodes.csv", "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(EPISODE_FIELDS)
+        for i, (step, x, success) in enumerate(rows):
+            writer.writerow([i + 1, step, -1, x, 0.0, 10, success, float(success)])
+
+
+def test_start_room_training_episodes_by_hand(tmp_path):
+    """Start-room episodes (x in [-5.5, -1.5]) up to the step, and the share of them that succeeded;
+    pooled over seeds by episode count, not by averaging the seeds' shares."""
+    for seed, rows in (("seed0", [(100, -4.0, 0), (300, -2.0, 1), (350, 0.0, 1), (900, 3.0, 0), (1500, -3.0, 0),
+                                  (2500, -3.0, 1)]),
+                       ("seed1", [(800, -5.0, 1)])):
+        write_run(tmp_path / seed, [0.0, 1.0], [0.0, 0.5])
+        (tmp_path / seed / "config.json").write_text('{"env": {}}')
+        write_episodes(tmp_path / seed, rows)
+    seed0 = tmp_path / "seed0"
+    assert summary.start_room_episodes(seed0, 1000) == (2, 0.5)  # x = -4 (failed) and -2 (reached the goal)
+    assert summary.start_room_episodes(seed0, 2000) == (3, pytest.approx(1 / 3))
+    assert summary.start_room_episodes(seed0, 50)[0] == 0 and np.isnan(summary.start_room_episodes(seed0, 50)[1])
+    text = summary.markdown(tmp_path, start_room_until=1000)
+    assert "| seed0 | 2,000 | 1.00 (2,000) | 1.00 / 0.50 (at 2,000) | - | 2 (0.50) |" in text
+    assert text.splitlines()[-1].endswith("| mean - | 3 (0.67) |")  # (1 + 1) of (2 + 1); no weights logged
