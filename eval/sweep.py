@@ -509,9 +509,12 @@ def _sweep(args: argparse.Namespace, argv, workers: int, configs: dict, rejected
     print(f"sweep: {len(jobs)} jobs, {sum(len(job.seeds) for job in jobs)} runs; {len(todo)} jobs to run on "
           f"{args.backend} with {workers} worker(s) x {args.threads} torch thread(s)", flush=True)
 
-    previous = None
-    if args.backend == "local" and _in_main_thread():  # SIGTERM stops the sweep as Ctrl-C does
-        previous = signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
+    previous = {}
+    if args.backend == "local" and _in_main_thread():
+        # SIGTERM stops the sweep as Ctrl-C does. SIGINT is set explicitly too (as the training CLI
+        # does): a process a script starts in the background inherits SIGINT ignored, and Python
+        # then leaves it ignored, so Ctrl-C or `kill -INT` would not stop the sweep
+        previous = {sig: signal.signal(sig, _raise_keyboard_interrupt) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         if args.backend == "ray":
             run_ray(todo, record)
@@ -521,8 +524,8 @@ def _sweep(args: argparse.Namespace, argv, workers: int, configs: dict, rejected
     except KeyboardInterrupt:
         record.status = "interrupted"
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
         record.write()
     print(summary(record), flush=True)
     if record.status == "interrupted":

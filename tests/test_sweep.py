@@ -189,9 +189,11 @@ def test_a_worker_that_dies_without_a_result_fails_only_its_job(config_file, tmp
 
 def test_ctrl_c_stops_the_jobs_after_a_checkpoint(config_file, tmp_path):
     out = tmp_path / "out"
+    # started as a script's background job is (`cmd &`): SIGINT inherited ignored; the sweep must still stop on it
     process = subprocess.Popen([sys.executable, "-m", "lava_bridge_mj.eval.sweep",
                                 *tiny_argv(out, config_file, "sac", "0", 100_000)],
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
     checkpoint = out / "sac-d500" / "seed0" / "checkpoint.pt"
     # generous limits: they only stop a hang, and a loaded CI machine starts torch slowly
     deadline = time.monotonic() + 600
