@@ -26,13 +26,18 @@ bench: setup
 	$(BIN)/python bench/env_throughput.py
 
 # docs/results.md's tables and figures, regenerated from the committed metrics in results/ (no training):
-# every method at the 100k protocol budget, AuxSS and SAC at the paper's 300k, and the AuxSS ablations.
+# every method at the 100k protocol budget, AuxSS, SAC and Omega-SS at the paper's 300k, the AuxSS ablations,
+# and the start-strategy calibration on the tuning seeds (docs/calibration.md).
 report: setup
 	$(BIN)/lava-bridge-bench report results/protocol --budget 100000 --out docs/report
 	$(BIN)/lava-bridge-bench report results/protocol/auxss-d500 results/protocol/sac-d500 results/protocol/omega_ss-d500 --seeds 0-4 \
 	    --out docs/report_300k
 	$(BIN)/lava-bridge-bench report results/protocol/auxss-d500 results/ablations --budget 100000 --seeds 0-4 \
 	    --out docs/report_ablations
+	$(BIN)/lava-bridge-bench report results/calibration/strategies --budget 100000 --seeds 100-104 \
+	    --out docs/report_calibration
+	$(BIN)/lava-bridge-bench report results/calibration/strategies/auxss_base results/calibration/strategies/auxss_delta001 \
+	    results/calibration/strategies/auxss_sigma015 --budget 100000 --seeds 100-109 --out docs/report_calibration_10
 
 setup: gl $(STAMP)
 
