@@ -54,17 +54,12 @@ def seed_summary(rows: list[dict[str, float]], threshold: float = THRESHOLD) -> 
             "last_step": rows[-1]["step"], "last_p0": rows[-1]["success_p0"], "last_ood": rows[-1]["success_ood"]}
 
 
-def start_room(run_dir: Path) -> tuple[float, float, float, float]:
-    """The run's start room as (x, y, half_x, half_y), from its configured layout."""
+def in_start_room(run_dir: Path, positions: np.ndarray) -> np.ndarray:
+    """Which of `positions` ((n, 2+) arrays, x and y first) lie in the start room of the run's layout."""
     env = json.loads((run_dir / "config.json").read_text()).get("env", {})
     layout_fields = {f.name for f in dataclasses.fields(Layout)}
     room = Layout(**{k: v for k, v in env.items() if k in layout_fields}).start_room
-    return room.x, room.y, room.half_x, room.half_y
-
-
-def in_start_room(run_dir: Path, positions: np.ndarray) -> np.ndarray:
-    x, y, half_x, half_y = start_room(run_dir)
-    return (np.abs(positions[:, 0] - x) <= half_x) & (np.abs(positions[:, 1] - y) <= half_y)
+    return (np.abs(positions[:, 0] - room.x) <= room.half_x) & (np.abs(positions[:, 1] - room.y) <= room.half_y)
 
 
 def start_room_episodes(run_dir: Path, until: float) -> tuple[int, float]:
