@@ -17,6 +17,8 @@ The strategies are the paper's (DESIGN.md section 3): `AuxSS` (Algorithm 2), `Om
 
 from __future__ import annotations
 
+import inspect
+import json
 import math
 from typing import Any, Sequence
 
@@ -439,13 +441,7 @@ def make_start_strategy(name: str, states: Any = None, **params: Any) -> StartSt
     `estimate_random_policy_safety` with `k`, `rollouts`, `seed`). goaldist_ss needs `goal=(x, y)`.
     Unknown names or parameters raise ValueError naming them and what is accepted.
     """
-    if name not in STRATEGY_PARAMS:
-        raise ValueError(f"unknown start strategy {name!r}; expected one of {STRATEGY_NAMES}")
-    accepted = STRATEGY_PARAMS[name]
-    unknown = sorted(set(params) - set(accepted))
-    if unknown:
-        raise ValueError(f"unknown parameters {unknown} for start strategy {name!r}; "
-                         f"it accepts {list(accepted) or 'none'}")
+    _check_params(name, params)
     if name == "p0":
         return P0Start()
     if name == "uniform_ss":
@@ -465,3 +461,28 @@ def make_start_strategy(name: str, states: Any = None, **params: Any) -> StartSt
             raise ValueError(f"parameters {rollout_params} of 'omega_ss' only apply with env=, not omega=")
         return OmegaSS(states, **params)
     return OmegaSS.from_env(states, **params)
+
+
+def strategy_settings(name: str, **params: Any) -> dict[str, Any]:
+    """Every setting of the strategy `make_start_strategy(name, states, **params)` builds, with the
+    code's defaults filled in, as JSON values: what a run's config leaves to the defaults, written
+    down so that a later change of a default cannot silently relabel the runs made before it. The
+    env of Omega-SS's rollouts and a precomputed omega are objects, not settings, and are left out.
+    """
+    _check_params(name, params)
+    builder = {"p0": P0Start, "uniform_ss": UniformSS, "auxss": AuxSS, "goaldist_ss": GoalDistSS,
+               "omega_ss": OmegaSS.from_env if "env" in params else OmegaSS}[name]
+    skipped = {"self", "states", "env", "omega"}
+    settings = {parameter.name: params.get(parameter.name, parameter.default)
+                for parameter in inspect.signature(builder).parameters.values() if parameter.name not in skipped}
+    return json.loads(json.dumps(settings, default=lambda value: np.asarray(value).tolist()))
+
+
+def _check_params(name: str, params: dict[str, Any]) -> None:
+    if name not in STRATEGY_PARAMS:
+        raise ValueError(f"unknown start strategy {name!r}; expected one of {STRATEGY_NAMES}")
+    accepted = STRATEGY_PARAMS[name]
+    unknown = sorted(set(params) - set(accepted))
+    if unknown:
+        raise ValueError(f"unknown parameters {unknown} for start strategy {name!r}; "
+                         f"it accepts {list(accepted) or 'none'}")

@@ -2,6 +2,8 @@
 
 A run directory holds:
     config.json         the full configuration (a resumed run must match it)
+    provenance.json     per training session (the first, each resume): its steps, the code and library
+                        versions that ran it and the start strategy's settings, defaults filled in
     metrics.csv         one row per evaluation: steps, success from p0 and ood, returns, SAC stats
     start_weights.npz   the start strategy's candidate states and its weights at every evaluation
     episodes.csv        one row per training episode (online methods): where it started, how it ended
@@ -52,9 +54,10 @@ from lava_bridge_mj.agents.offline import BC, IQL, BCConfig, IQLConfig
 from lava_bridge_mj.agents.sac import SAC, SACConfig
 from lava_bridge_mj.agents.seed_batch import stack_batches
 from lava_bridge_mj.agents.start_state_wrapper import StartSelector
-from lava_bridge_mj.agents.start_strategies import STRATEGY_PARAMS, make_start_strategy
+from lava_bridge_mj.agents.start_strategies import STRATEGY_PARAMS, make_start_strategy, strategy_settings
 from lava_bridge_mj.eval.atomic import atomic_write, atomic_write_text
 from lava_bridge_mj.eval.evaluate import evaluate
+from lava_bridge_mj.eval.provenance import code_provenance
 from lava_bridge_mj.vector import LavaBridgeVectorEnv
 
 METHOD_STRATEGIES = {
@@ -86,7 +89,7 @@ started from (-1: the env's own p0 start) and that start's position, its length,
 the goal, its return. What separates 'never tried from there' from 'tried and failed' per start."""
 CHECKPOINT_VERSION = 3  # 3: optimisers in two parameter groups (seed_adam)
 CHECKPOINTS = ("checkpoint.pt", "checkpoint.prev.pt")
-RUN_FILES = ("config.json", "metrics.csv", "start_weights.npz", "episodes.csv", *CHECKPOINTS, "final.pt", "rollouts.mp4")
+RUN_FILES = ("config.json", "provenance.json", "metrics.csv", "start_weights.npz", "episodes.csv", *CHECKPOINTS, "final.pt", "rollouts.mp4")
 """What a run directory holds besides policies/: what --overwrite removes."""
 
 
@@ -237,9 +240,10 @@ def demo_buffer(config: RunConfig) -> ReplayBuffer:
     return buffer
 
 
-def make_strategy(config: RunConfig, states: np.ndarray, probe: lava_bridge_mj.LavaBridgeEnv):
-    """The method's start strategy; `probe`, an env of the run's task, gives Omega-SS its safety
-    rollouts and GoalDist-SS its goal (it is left at an arbitrary state)."""
+def strategy_params(config: RunConfig, probe: lava_bridge_mj.LavaBridgeEnv) -> dict[str, Any]:
+    """The keyword parameters of the method's start strategy: the config's, plus what the run
+    supplies: `probe`, an env of the run's task, gives Omega-SS its safety rollouts (seeded with
+    the run's seed) and GoalDist-SS its goal (it is left at an arbitrary state)."""
     name = METHOD_STRATEGIES[config.method]
     params = dict(config.strategy)
     if name == "omega_ss" and "omega" not in params:
@@ -247,7 +251,13 @@ def make_strategy(config: RunConfig, states: np.ndarray, probe: lava_bridge_mj.L
         params["env"] = probe
     if name == "goaldist_ss":
         params.setdefault("goal", probe.layout.goal)
-    return make_start_strategy(name, None if name == "p0" else states, **params)
+    return params
+
+
+def make_strategy(config: RunConfig, states: np.ndarray, probe: lava_bridge_mj.LavaBridgeEnv):
+    """The method's start strategy over the candidate `states`."""
+    name = METHOD_STRATEGIES[config.method]
+    return make_start_strategy(name, None if name == "p0" else states, **strategy_params(config, probe))
 
 
 class SeedRun:
@@ -260,6 +270,7 @@ class SeedRun:
         seed = config.seed
         self.states = candidate_states(config)
         self.strategy = make_strategy(config, self.states, probe)
+        self.strategy_settings = strategy_settings(METHOD_STRATEGIES[config.method], **strategy_params(config, probe))
         self.envs, self.index = envs, index  # this seed's env is sub-env `index` of the batch's `envs`
         self.selector = StartSelector(self.strategy, seed)
         self.buffer = ReplayBuffer(config.sac.buffer_size, 4, 2)
@@ -663,6 +674,14 @@ def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seed
             run.resume()
         for seed_config, directory in zip(configs, dirs):
             atomic_write_text(directory / "config.json", json.dumps(seed_config.to_dict(), indent=2) + "\n")
+        if run.step < config.steps:  # a finished run resumed at its budget trains nothing: no session
+            code = code_provenance()
+            started = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+            for seed_run in run.seed_runs:
+                session = {"from_step": run.step, "to_step": config.steps, "started": started, "code": code,
+                           "strategy": seed_run.strategy_settings}
+                sessions = _read_provenance(seed_run.dir) if resume else []
+                atomic_write_text(seed_run.dir / "provenance.json", json.dumps([*sessions, session], indent=2) + "\n")
         run.train(progress=progress)
     return run
 
@@ -680,6 +699,22 @@ def _check_run_directory(config: RunConfig, directory: Path, resume: bool, overw
     if not config.continues(existing):
         raise RunDirectoryError(f"{directory} holds a run with another configuration; resume it "
                                 "with the same options (--steps may change), or choose another directory")
+    _read_provenance(directory)  # refuse a damaged record before training changes anything
+
+
+def _read_provenance(directory: Path) -> list[dict[str, Any]]:
+    """The run's earlier sessions; none for a new run or one made before provenance was recorded."""
+    path = directory / "provenance.json"
+    if not path.exists():
+        return []
+    try:
+        sessions = json.loads(path.read_text())
+    except ValueError:
+        sessions = None
+    if not (isinstance(sessions, list) and all(isinstance(s, dict) for s in sessions)):
+        raise RunDirectoryError(f"{path} is not a JSON list of training sessions; not resuming into it "
+                                "(move it aside to continue without the earlier sessions' record)")
+    return sessions
 
 
 @contextmanager

@@ -4,6 +4,7 @@ import csv
 import dataclasses
 import json
 import shutil
+import subprocess
 
 import numpy as np
 import pytest
@@ -14,7 +15,9 @@ import lava_bridge_mj
 from conftest import interrupted_copy, metrics_without_wall_time
 
 from lava_bridge_mj.agents.sac import SACConfig
+from lava_bridge_mj.agents.start_strategies import GoalDistSS
 from lava_bridge_mj.eval import cli
+from lava_bridge_mj.eval.provenance import git_state
 from lava_bridge_mj.eval.runner import EPISODE_FIELDS, METHOD_STRATEGIES, METHODS, METRIC_FIELDS, Run, RunConfig, train
 
 TINY_SAC = SACConfig(hidden_sizes=(16, 16), batch_size=32, buffer_size=500, learning_starts=100)
@@ -133,6 +136,60 @@ def test_a_finished_run_extended_to_more_steps_equals_one_trained_to_them(tmp_pa
         assert torch.equal(tensor, extended.agent.actor.state_dict()[name]), name
     assert json.loads((tmp_path / "extended/config.json").read_text())["steps"] == 700
     assert torch.load(tmp_path / "extended/final.pt", weights_only=False)["step"] == 700
+
+
+def test_provenance_records_each_training_session_with_the_strategy_settings(tmp_path):
+    config = tiny_config("goaldist_ss", steps=300)
+    train(config, tmp_path, progress=False)
+    first, = json.loads((tmp_path / "provenance.json").read_text())
+    assert (first["from_step"], first["to_step"]) == (0, 300)
+    goal = lava_bridge_mj.LavaBridgeEnv().layout.goal
+    assert first["strategy"] == {"goal": [float(goal[0]), float(goal[1])], "temperature": 0.5,
+                                 "temperature_growth": GoalDistSS(np.zeros((1, 4)), goal=(0, 0)).temperature_growth,
+                                 "max_temperature": 50.0}
+    assert first["code"]["lava_bridge_mj"] and first["code"]["torch"] == torch.__version__
+
+    train(config, tmp_path, resume=True, progress=False)  # finished at its budget: trains nothing, records nothing
+    assert len(json.loads((tmp_path / "provenance.json").read_text())) == 1
+    train(dataclasses.replace(config, steps=500), tmp_path, resume=True, progress=False)
+    sessions = json.loads((tmp_path / "provenance.json").read_text())
+    assert [(s["from_step"], s["to_step"]) for s in sessions] == [(0, 300), (300, 500)]
+    assert sessions[0] == first
+
+    # a new run into a directory with a stray record starts its own
+    (tmp_path / "fresh").mkdir()
+    (tmp_path / "fresh/provenance.json").write_text(json.dumps(sessions))
+    train(config, tmp_path / "fresh", progress=False)
+    assert [s["from_step"] for s in json.loads((tmp_path / "fresh/provenance.json").read_text())] == [0]
+    omega = tiny_config("omega_ss", steps=100, seed=7)
+    train(omega, tmp_path / "omega", progress=False)
+    assert json.loads((tmp_path / "omega/provenance.json").read_text())[0]["strategy"] == {
+        "k": 4, "rollouts": 32, "seed": 7, "clamp": 0.05}  # the rollouts are seeded with the run's seed
+
+
+def test_resume_refuses_a_damaged_provenance_record_and_changes_nothing(tmp_path):
+    train(tiny_config(steps=200), tmp_path, progress=False)
+    (tmp_path / "provenance.json").write_text('{"from_step": 0}')
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file() and p.name != ".lock"}
+    with pytest.raises(ValueError, match=r"provenance.json is not a JSON list of training sessions"):
+        train(tiny_config(steps=300), tmp_path, resume=True, progress=False)
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file() and p.name != ".lock"} == before
+
+
+def test_git_state_names_the_commit_of_a_tracked_file_and_nothing_for_an_untracked_one(tmp_path):
+    def git(*args):
+        return subprocess.run(["git", "-C", str(tmp_path), *args], check=True, capture_output=True,
+                              text=True).stdout.strip()
+
+    git("init", "-q")
+    (tmp_path / "tracked.py").write_text("x = 1\n")
+    git("add", "tracked.py")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-q", "-m", "one")
+    (tmp_path / "untracked.py").write_text("y = 2\n")
+    assert git_state(tmp_path / "tracked.py") == {"commit": git("rev-parse", "HEAD"), "dirty": False}
+    assert git_state(tmp_path / "untracked.py") == {"commit": None, "dirty": None}  # e.g. a copy in site-packages
+    (tmp_path / "tracked.py").write_text("x = 2\n")
+    assert git_state(tmp_path / "tracked.py")["dirty"] is True
 
 
 def test_resume_refuses_to_shorten_a_run_and_changes_nothing(tmp_path):

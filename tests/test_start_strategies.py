@@ -19,6 +19,7 @@ from lava_bridge_mj.agents.start_strategies import (
     UniformSS,
     estimate_random_policy_safety,
     make_start_strategy,
+    strategy_settings,
 )
 
 # Three states for hand computation: S1 is 0.3 m from S0 in x, S2 differs from S0 only in vy (0.6 m/s).
@@ -314,6 +315,42 @@ def test_auxss_defaults_are_documented_values():
     aux = make_start_strategy("auxss", THREE_STATES)
     assert (aux.horizon, aux.delta, aux.sigma, aux.ema, aux.count_successes, aux.kernel_dims, aux.timeout_weight) == \
         (500, 0.05, 0.3, None, True, "full", None)
+
+
+def test_strategy_settings_fill_in_the_defaults_and_keep_what_was_given():
+    settings = strategy_settings("auxss", delta=0.01)
+    aux = make_start_strategy("auxss", THREE_STATES)
+    assert settings == {"horizon": aux.horizon, "delta": 0.01, "sigma": aux.sigma, "state_scale": [1.0, 1.0, 1.0, 1.0],
+                        "count_successes": aux.count_successes, "ema": aux.ema, "kernel_dims": aux.kernel_dims,
+                        "timeout_weight": aux.timeout_weight}
+    goaldist = strategy_settings("goaldist_ss", goal=np.array([1.5, 2.0]))
+    assert goaldist["goal"] == [1.5, 2.0] and goaldist["temperature_growth"] == GoalDistSS(
+        THREE_STATES, goal=(1.5, 2.0)).temperature_growth
+    # the rollouts' env and a precomputed omega are objects, not settings
+    assert strategy_settings("omega_ss", env=object(), seed=3) == {"k": 4, "rollouts": 32, "seed": 3, "clamp": 0.05}
+    assert strategy_settings("omega_ss", omega=[1.0, 0.5, 0.0]) == {"clamp": 0.05}
+    assert strategy_settings("uniform_ss") == strategy_settings("p0") == {}
+    assert json.loads(json.dumps(settings)) == settings
+
+
+@pytest.mark.parametrize("name", ["auxss", "goaldist_ss"])
+def test_recorded_settings_rebuild_the_same_strategy(name):
+    # what provenance.json records is enough to build the strategy again, whatever the defaults become
+    given = STRATEGY_PARAMS[name]
+    original = make_start_strategy(name, THREE_STATES, **given)
+    rebuilt = make_start_strategy(name, THREE_STATES, **strategy_settings(name, **given))
+    for _ in range(3):
+        original.update(0, 40)
+        rebuilt.update(0, 40)
+    np.testing.assert_array_equal(original.weights, rebuilt.weights)
+    assert original.state_dict() == rebuilt.state_dict()
+
+
+def test_strategy_settings_reject_what_make_start_strategy_rejects():
+    with pytest.raises(ValueError, match=r"sigmaa.*sigma"):
+        strategy_settings("auxss", sigmaa=0.1)
+    with pytest.raises(ValueError, match=r"'aux_ss'.*'auxss'"):
+        strategy_settings("aux_ss")
 
 
 @pytest.mark.parametrize("name, params, match", [
