@@ -30,7 +30,8 @@ bench: setup
 # and the start-strategy calibration on the tuning seeds (docs/calibration.md).
 report: setup
 	$(BIN)/lava-bridge-bench report results/protocol --budget 100000 --out docs/report
-	$(BIN)/lava-bridge-bench report results/protocol/auxss-d500 results/protocol/sac-d500 results/protocol/omega_ss-d500 --seeds 0-4 \
+	$(BIN)/lava-bridge-bench report results/protocol/auxss-d500 results/protocol/sac-d500 results/protocol/omega_ss-d500 \
+	    results/protocol/uniform_ss-d500 results/protocol/goaldist_ss-d500 --seeds 0-4 \
 	    --out docs/report_300k
 	$(BIN)/lava-bridge-bench report results/protocol/auxss-d500 results/ablations --budget 100000 --seeds 0-4 \
 	    --out docs/report_ablations
