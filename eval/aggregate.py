@@ -29,6 +29,11 @@ rliable's 50,000: on 25 seeds x 30 steps of uniform random scores the bounds of 
 0.0025 in median and 0.010 at most (intervals about 0.3 wide), while 50,000 took 16.5 s per group and
 metric (2,000: 0.6 s).
 
+**Late-training means.** Per group and metric, each seed's mean over the evaluations in the last
+third of the group's common steps (those past two thirds of its last one: 210,000-300,000 of
+300,000, 70,000-100,000 of 100,000), then the IQM across seeds with the same bootstrap CI: where a
+group ended up, without the single evaluation's swing.
+
 **Steps to threshold.** Per seed, the first evaluation step with success_p0 >= 0.8 (eval/summary.py's
 definition); per group, how many seeds ever reached it, and the median and IQM over *all* seeds with a
 seed that never reached it counted as infinitely late. A median or IQM that a never-reached seed
@@ -56,6 +61,8 @@ METRICS = ("success_p0", "success_ood", "train_return")
 """The metrics with curves: success rate from p0 and from ood, and the training return."""
 BOOTSTRAP_SEED = 2024
 BOOTSTRAP_REPS = 2_000
+LATE_FRACTION = 1 / 3
+"""`late_means` averages each seed over the last third of its evaluations (210k-300k of 300k)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -250,25 +257,62 @@ def iqm_curves(group: Group, metrics: tuple[str, ...] = METRICS, reps: int = BOO
 
     The metrics are bootstrapped in one call (their columns side by side), which is what rliable does
     for one metric at many steps: every (seed slot, column) entry is resampled independently."""
-    from rliable import library as rly  # imported here: the report's dependency, not the trainer's
-
     steps = group.steps
     if not len(steps):  # the seeds share no evaluation step: nothing to aggregate
         empty = np.zeros(0)
         return {metric: Curve(steps, empty, empty, empty, len(group.runs)) for metric in metrics}
     table = np.concatenate([group.scores(metric) for metric in metrics], axis=1)  # (seeds, metrics * steps)
-    missing = ~np.isfinite(table).all(axis=0)
-    scores = np.where(np.isfinite(table), table, 0.0)[:, None, :]  # rliable's (runs, tasks, ...) layout
-    with _global_numpy_seed(seed):
-        points, intervals = rly.get_interval_estimates(
-            {"group": scores}, iqm, reps=reps)
-    point, (low, high) = points["group"], intervals["group"]
-    point, low, high = (np.where(missing, np.nan, values) for values in (point, low, high))
+    point, low, high = _iqm_intervals(table, reps, seed)
     curves = {}
     for i, metric in enumerate(metrics):
         cut = slice(i * len(steps), (i + 1) * len(steps))
         curves[metric] = Curve(steps, point[cut], low[cut], high[cut], len(group.runs))
     return curves
+
+
+def _iqm_intervals(table: np.ndarray, reps: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """IQM and 95% CI bounds of every column of a (seeds, columns) table, rliable's stratified
+    bootstrap under the fixed global seed; NaN for a column where some seed has no value."""
+    from rliable import library as rly  # imported here: the report's dependency, not the trainer's
+
+    missing = ~np.isfinite(table).all(axis=0)
+    scores = np.where(np.isfinite(table), table, 0.0)[:, None, :]  # rliable's (runs, tasks, ...) layout
+    with _global_numpy_seed(seed):
+        points, intervals = rly.get_interval_estimates({"group": scores}, iqm, reps=reps)
+    point, (low, high) = points["group"], intervals["group"]
+    return tuple(np.where(missing, np.nan, values) for values in (point, low, high))
+
+
+@dataclasses.dataclass(frozen=True)
+class WindowMean:
+    """IQM across seeds of each seed's mean over the evaluations at `steps`, with its 95% CI."""
+
+    steps: np.ndarray
+    iqm: float
+    low: float
+    high: float
+
+
+def late_window(group: Group, fraction: float = LATE_FRACTION) -> np.ndarray:
+    """The group's common evaluation steps in the last `fraction` of its training: those past
+    (1 - fraction) x its last common step."""
+    steps = group.steps
+    return steps[steps > (1 - fraction) * steps[-1]] if len(steps) else steps
+
+
+def late_means(group: Group, metrics: tuple[str, ...] = METRICS, fraction: float = LATE_FRACTION,
+               reps: int = BOOTSTRAP_REPS, seed: int = BOOTSTRAP_SEED) -> dict[str, WindowMean]:
+    """Per metric: each seed's mean over `late_window`'s evaluations, then the IQM across seeds with
+    its 95% stratified-bootstrap CI. One evaluation of 50 episodes swings by 0.2-0.4 between
+    neighbours on a single seed; the window's mean says where a group ended with far less of that."""
+    window = late_window(group, fraction)
+    if not len(window):
+        return {metric: WindowMean(window, math.nan, math.nan, math.nan) for metric in metrics}
+    columns = np.isin(group.steps, window)
+    table = np.stack([group.scores(metric)[:, columns].mean(axis=1) for metric in metrics], axis=1)
+    point, low, high = _iqm_intervals(table, reps, seed)
+    return {metric: WindowMean(window, float(point[i]), float(low[i]), float(high[i]))
+            for i, metric in enumerate(metrics)}
 
 
 @dataclasses.dataclass(frozen=True)

@@ -31,7 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from lava_bridge_mj.eval.aggregate import (BOOTSTRAP_REPS, BOOTSTRAP_SEED, METRICS, THRESHOLD, Curve, Group,
-                                           RunRecord, find_runs, group_runs, iqm_curves, steps_to_threshold)
+                                           RunRecord, find_runs, group_runs, iqm_curves, late_means,
+                                           steps_to_threshold)
 from lava_bridge_mj.eval.cli import _positive_int, format_seeds, parse_seeds
 from lava_bridge_mj.eval.findings import check_findings, common_step, demo_size_rows, variant_rows
 
@@ -286,6 +287,20 @@ def _last_evaluation_table(groups: list[Group], curves: dict[str, dict[str, Curv
     return lines
 
 
+def _late_table(groups: list[Group], reps: int) -> list[str]:
+    lines = [f"Each seed's mean over its evaluations in the last third of the group's steps (past two thirds of "
+             f"the last one), then the IQM [95% CI] across seeds: where a group ended up, without the swing of a "
+             f"single evaluation.", "",
+             "| group | seeds | evaluations (steps) | success from p0 | success from ood |", "|---|---:|---|---:|---:|"]
+    for g in groups:
+        late = late_means(g, ("success_p0", "success_ood"), reps=reps)
+        window = late["success_p0"].steps
+        steps = f"{len(window)} ({window[0]:,.0f}-{window[-1]:,.0f})" if len(window) else "-"
+        cells = [f"{m.iqm:.2f} [{m.low:.2f}, {m.high:.2f}]" if math.isfinite(m.iqm) else "-" for m in late.values()]
+        lines.append(f"| {g.label} | {len(g.runs)} | {steps} | {' | '.join(cells)} |")
+    return lines
+
+
 def _threshold_table(groups: list[Group], threshold: float) -> list[str]:
     lines = ["Per seed, the first evaluation at or above the threshold. Median and IQM are over all seeds, a seed "
              "that never got there counting as infinitely late: they read *not reached* when such seeds reach the "
@@ -365,6 +380,7 @@ def build_report(roots: Path | Sequence[Path], out: Path, threshold: float = THR
                f"none of {', '.join(START_STUDY)} has runs here.", START_STUDY)
     lines.extend(["", "## The maze and AuxSS's start weights", "", *_maze_section(groups, threshold, where, out)])
     lines.extend(["", "## At the last evaluation", "", *_last_evaluation_table(groups, curves)])
+    lines.extend(["", "## Over the last third of training", "", *_late_table(groups, reps)])
     lines.extend(["", f"## Steps to p0 success >= {threshold:g}", "", *_threshold_table(groups, threshold)])
     if threshold == THRESHOLD:  # the paper's claims are about 0.8
         lines.extend(["", "## The paper's findings", "", *_findings_section(groups)])

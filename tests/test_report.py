@@ -7,6 +7,7 @@ import math
 import re
 import subprocess
 import sys
+from dataclasses import astuple
 
 import imageio.v2 as imageio
 import numpy as np
@@ -71,6 +72,22 @@ def test_iqm_curve_by_hand_and_ci_contains_it(tmp_path):
     assert np.all(curve.low >= scores.min(0)) and np.all(curve.high <= scores.max(0))
     assert curve.low[0] == 0.0  # three of four seeds at 0
     assert curve.high[2] - curve.low[2] > 0.2  # 0, 0.6, 0.8, 1.0: a wide interval from four seeds
+
+
+def test_late_means_average_each_seed_over_the_last_third_then_take_the_iqm(tmp_path):
+    group = hand_group(tmp_path)
+    late = aggregate.late_means(group, ("success_p0", "success_ood"), reps=1000)
+    # steps past 2/3 x 4000: 3000 and 4000; per-seed means 0.9, 0.75, 1.0, 0.0; IQM = (0.75 + 0.9) / 2
+    np.testing.assert_array_equal(late["success_p0"].steps, [3000, 4000])
+    assert late["success_p0"].iqm == pytest.approx(0.825)
+    assert late["success_ood"].iqm == pytest.approx(0.4125)  # write_run's ood is half of p0
+    assert late["success_p0"].low <= 0.825 <= late["success_p0"].high
+    # two seeds whose window means are 0 and 1: the interval by hand is [0, 1] around 0.5
+    two = hand_group(tmp_path, {0: [1.0, 0.0, 0.0, 0.0], 1: [0.0, 1.0, 1.0, 1.0]}, "two")
+    assert astuple(aggregate.late_means(two, ("success_p0",), reps=2000)["success_p0"])[1:] == (0.5, 0.0, 1.0)
+    # with one evaluation the window is that evaluation
+    one = aggregate.late_means(hand_group(tmp_path, {0: [0.4], 1: [0.6]}, "one"), ("success_p0",), reps=100)
+    assert one["success_p0"].steps.tolist() == [1000] and one["success_p0"].iqm == pytest.approx(0.5)
 
 
 def test_ci_narrows_with_more_seeds_and_vanishes_without_spread(tmp_path):
@@ -250,6 +267,8 @@ def test_report_writes_every_figure_and_the_markdown(tmp_path, capsys):
     assert re.search(r"\| auxss \(0\.5K\) \| 3 \| 5,000 \| 0\.56 \[", text)
     assert "| sac (0.5K) | 0 of 3 | not reached | not reached |" in text
     assert "start weights" in text and "seed 0" in text
+    # over the last third (steps 4,000 and 5,000) auxss's seeds average 0.4025 + 0.1 * seed: IQM 0.5025
+    assert "| auxss (0.5K) | 3 | 2 (4,000-5,000) | 0.50 [" in text
 
 
 def test_report_figures_are_byte_identical_when_regenerated(tmp_path):
