@@ -38,7 +38,8 @@ report: setup
 	$(BIN)/lava-bridge-bench report results/calibration/strategies --budget 100000 --seeds 100-104 \
 	    --out docs/report_calibration
 	$(BIN)/lava-bridge-bench report results/calibration/strategies/auxss_base results/calibration/strategies/auxss_delta001 \
-	    results/calibration/strategies/auxss_sigma015 --budget 100000 --seeds 100-114 --out docs/report_calibration_confirm
+	    results/calibration/strategies/auxss_sigma015 results/calibration/strategies/goaldist_base \
+	    results/calibration/strategies/goaldist_growth101 --budget 100000 --seeds 100-114 --out docs/report_calibration_confirm
 
 setup: gl $(STAMP)
 
