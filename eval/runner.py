@@ -254,12 +254,6 @@ def strategy_params(config: RunConfig, probe: lava_bridge_mj.LavaBridgeEnv) -> d
     return params
 
 
-def make_strategy(config: RunConfig, states: np.ndarray, probe: lava_bridge_mj.LavaBridgeEnv):
-    """The method's start strategy over the candidate `states`."""
-    name = METHOD_STRATEGIES[config.method]
-    return make_start_strategy(name, None if name == "p0" else states, **strategy_params(config, probe))
-
-
 class SeedRun:
     """One seed's part of a training batch: its sub-env of the batch's vector env, its start
     strategy, replay buffer, RNGs, metrics and run directory. `Run` steps all of its seeds in lockstep."""
@@ -269,8 +263,9 @@ class SeedRun:
         self.config, self.dir = config, Path(out_dir)
         seed = config.seed
         self.states = candidate_states(config)
-        self.strategy = make_strategy(config, self.states, probe)
-        self.strategy_settings = strategy_settings(METHOD_STRATEGIES[config.method], **strategy_params(config, probe))
+        name, params = METHOD_STRATEGIES[config.method], strategy_params(config, probe)
+        self.strategy = make_start_strategy(name, None if name == "p0" else self.states, **params)
+        self.strategy_settings = strategy_settings(name, **params)  # what provenance.json records
         self.envs, self.index = envs, index  # this seed's env is sub-env `index` of the batch's `envs`
         self.selector = StartSelector(self.strategy, seed)
         self.buffer = ReplayBuffer(config.sac.buffer_size, 4, 2)
