@@ -16,10 +16,13 @@ def check_number(name: str, value: Any, low: float = 0.0, high: float = math.inf
         raise ValueError(f"{name} must be a number in {interval}, got {value!r}")
 
 
-def check_integer(name: str, value: Any, minimum: int) -> None:
-    """ValueError unless `value` is an int >= minimum, e.g. "batch_size must be an integer >= 1"."""
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+def check_integer(name: str, value: Any, minimum: int, maximum: int | None = None) -> None:
+    """ValueError unless `value` is an int >= minimum (and <= maximum), e.g. "batch_size must be an
+    integer >= 1"."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum or (
+            maximum is not None and value > maximum):
+        expected = f"in [{minimum}, {maximum}]" if maximum is not None else f">= {minimum}"
+        raise ValueError(f"{name} must be an integer {expected}, got {value!r}")
 
 
 def check_hidden_sizes(sizes: Any) -> tuple[int, ...]:

@@ -13,11 +13,19 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import sys
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 
-from lava_bridge_mj.eval.runner import METHODS, RunConfig
+# OpenMP threads that sleep instead of spinning while they wait: with spinning threads, training fell
+# from about 600 to 3 steps/s when another process used the CPUs. libgomp reads this once, when torch
+# is loaded, so it is set before anything imports torch; a value the user set is kept.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+from lava_bridge_mj.eval.runner import MAX_SEED, METHODS, RunConfig  # noqa: E402
+from lava_bridge_mj.eval.run_files import run_files  # noqa: E402
 
 DEFAULTS = RunConfig()
 SUBCOMMANDS = {"report": "lava_bridge_mj.eval.report", "video": "lava_bridge_mj.eval.video",
@@ -25,21 +33,21 @@ SUBCOMMANDS = {"report": "lava_bridge_mj.eval.report", "video": "lava_bridge_mj.
 """`lava-bridge-bench NAME ...` runs module's main(rest of argv); without a name, the training command."""
 
 
-def _int_at_least(minimum: int, what: str):
-    """An argparse type: an integer >= minimum, or a usage error naming the value."""
+def _int_at_least(minimum: int, what: str, maximum: int | None = None):
+    """An argparse type: an integer >= minimum (and <= maximum), or a usage error naming the value."""
     def parse(text: str) -> int:
         try:
             value = int(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
-        if value < minimum:
+        if value < minimum or (maximum is not None and value > maximum):
             raise argparse.ArgumentTypeError(f"expected {what}, got {value}")
         return value
     return parse
 
 
 _positive_int = _int_at_least(1, "a positive integer")
-_seed = _int_at_least(0, "a non-negative integer seed")
+_seed = _int_at_least(0, f"an integer seed in [0, {MAX_SEED}]", MAX_SEED)
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -51,10 +59,10 @@ def parse_seeds(text: str) -> list[int]:
             first, last = int(low), int(high if dash else low)
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected seeds like 0-24 or 0,3,5-7, got {text!r}") from None
-        if first < 0 or last < first:
-            raise argparse.ArgumentTypeError(f"expected a range of non-negative seeds low-high, got {part.strip()!r}")
+        if first < 0 or last < first or last > MAX_SEED:
+            raise argparse.ArgumentTypeError(f"expected a range of seeds low-high in [0, {MAX_SEED}], got {part.strip()!r}")
         seeds.extend(range(first, last + 1))
-    repeated = sorted({s for s in seeds if seeds.count(s) > 1})
+    repeated = sorted(s for s, n in Counter(seeds).items() if n > 1)
     if repeated:
         raise argparse.ArgumentTypeError(f"seeds must be distinct; repeated: {repeated}")
     return seeds
@@ -111,7 +119,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--config", type=Path,
                         help="JSON file of RunConfig fields, e.g. {\"sac\": {\"hidden_sizes\": [256, 256]}, "
                              "\"strategy\": {\"sigma\": 0.2}}; options given here override it")
-    parser.add_argument("--out", type=Path, default=None,
+    parser.add_argument("--out", type=_directory, default=None,
                         help="run directory (default: runs/METHOD/seedSEED); with --seeds, the directory "
                              "that holds one seedS directory per seed (default: runs/METHOD)")
     written = parser.add_mutually_exclusive_group()
@@ -157,6 +165,13 @@ def _config_from(args: argparse.Namespace, parser: argparse.ArgumentParser) -> R
         parser.error(str(error))
 
 
+def _directory(text: str) -> Path:
+    """An argparse type: a directory path; an empty one (which would mean the current directory) is refused."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"expected a directory, got {text!r}")
+    return Path(text)
+
+
 def _check_writable(out: Path, parser: argparse.ArgumentParser) -> None:
     if out.exists() and not out.is_dir():
         parser.error(f"--out {out} exists and is not a directory")
@@ -182,11 +197,14 @@ def main(argv: list[str] | None = None) -> int:
         outs = [root / f"seed{seed}" for seed in seeds]
     else:
         outs = [args.out or Path("runs") / config.method / f"seed{config.seed}"]
+    if args.out is not None:
+        _check_writable(args.out, parser)
     for out in outs:
         _check_writable(out, parser)
-        if (out / "config.json").exists() and not (args.resume or args.overwrite):
-            parser.error(f"--out {out} already holds a run; pass --resume to continue it, --overwrite to "
-                         "replace it, or choose another --out")
+        found = run_files(out)
+        if found and not (args.resume or args.overwrite):
+            parser.error(f"--out {out} already holds a run ({', '.join(found)}); pass --resume to continue it, "
+                         "--overwrite to replace it, or choose another --out")
 
     import torch  # after argument checks, so --help and usage errors are instant
 
@@ -197,15 +215,23 @@ def main(argv: list[str] | None = None) -> int:
         run = train(config, outs, seeds=seeds, resume=args.resume, overwrite=args.overwrite,
                     progress=not args.no_progress)
     except RunInterrupted as stop:
-        again = f"--seeds {','.join(map(str, seeds))}" if args.seeds else f"--out {outs[0]}"
-        print(f"lava-bridge-bench: {stop}; continue with --resume {again}", file=sys.stderr)
+        print(f"lava-bridge-bench: {stop}; continue with: {resume_command(argv)}", file=sys.stderr)
         return 128 + stop.signum
     except ValueError as error:  # a directory is in use or holds another run, a foreign checkpoint, ...
         print(f"lava-bridge-bench: error: {error}", file=sys.stderr)
         return 2
+    except OSError as error:  # a full disk, a directory made read-only mid-run, ...
+        print(f"lava-bridge-bench: error: cannot write {error.filename or 'a run file'}: "
+              f"{error.strerror or error}; files already written are intact: fix that, then continue with: "
+              f"{resume_command(argv)}", file=sys.stderr)
+        return 1
     for seed_run in run.seed_runs:
+        seed = seed_run.config.seed
+        if seed in run.diverged:
+            print(f"{config.method} seed {seed}: stopped at step {run.diverged[seed]} (diverged) -> {seed_run.dir}")
+            continue
         last = seed_run.rows[-1]
-        print(f"{config.method} seed {seed_run.config.seed}: {last['step']} steps, success p0 "
+        print(f"{config.method} seed {seed}: {last['step']} steps, success p0 "
               f"{last['success_p0']:.2f}, ood {last['success_ood']:.2f} -> {seed_run.dir}")
     if args.video:
         import gymnasium
@@ -213,14 +239,22 @@ def main(argv: list[str] | None = None) -> int:
         import lava_bridge_mj
         from lava_bridge_mj.eval import video
 
-        env = gymnasium.make(lava_bridge_mj.ENV_ID, render_mode="rgb_array")
+        env = gymnasium.make(lava_bridge_mj.ENV_ID, render_mode="rgb_array", **config.env)
         try:
             for i, seed_run in enumerate(run.seed_runs):
+                if seed_run.config.seed in run.diverged:
+                    continue
                 video.record_rollouts(env, run.policy(i), seed_run.dir / "rollouts.mp4")
                 print(f"wrote {seed_run.dir / 'rollouts.mp4'}")
         finally:
             env.close()
-    return 0
+    return 1 if run.diverged else 0
+
+
+def resume_command(argv: Sequence[str]) -> str:
+    """The command that continues this run: the same arguments with --resume (and without --overwrite)."""
+    kept = [arg for arg in argv if arg not in ("--resume", "--overwrite")]
+    return shlex.join(["lava-bridge-bench", *kept, "--resume"])
 
 
 if __name__ == "__main__":

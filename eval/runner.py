@@ -35,6 +35,7 @@ import json
 import os
 import shutil
 import signal
+import sys
 import threading
 import time
 from collections.abc import Sequence
@@ -58,6 +59,8 @@ from lava_bridge_mj.agents.start_strategies import STRATEGY_PARAMS, make_start_s
 from lava_bridge_mj.eval.atomic import atomic_write, atomic_write_text
 from lava_bridge_mj.eval.evaluate import evaluate
 from lava_bridge_mj.eval.provenance import code_provenance
+from lava_bridge_mj.eval.run_files import (CHECKPOINTS, POLICIES, RUN_FILES, DamagedFileError, load_torch, run_files,
+                                           save_torch)
 from lava_bridge_mj.vector import LavaBridgeVectorEnv
 
 METHOD_STRATEGIES = {
@@ -80,6 +83,10 @@ OFFLINE_METHODS = ("bc", "iql")
 AGENT_CONFIGS = {"sac": SACConfig, "bc": BCConfig, "iql": IQLConfig, "jsrl": JSRLConfig}
 """RunConfig's nested hyperparameter sections."""
 METHODS = tuple(METHOD_STRATEGIES)
+MAX_SEED = 2**32 - 1
+"""Seeds are 32-bit: what every RNG here (numpy's, torch's, MuJoCo's) takes without overflow."""
+MAX_EVAL_EPISODES = 1000
+"""Evaluation keeps one env per episode; 1,000 already gives a success rate to within about 0.03."""
 METRIC_FIELDS = ("step", "episodes", "success_p0", "success_ood", "return_p0", "return_ood",
                  "train_return", "train_success", "q_mean", "alpha", "critic_loss", "actor_loss", "guide_horizon",
                  "wall_time")
@@ -88,9 +95,6 @@ EPISODE_FIELDS = ("episode", "step", "start_index", "start_x", "start_y", "lengt
 started from (-1: the env's own p0 start) and that start's position, its length, whether it reached
 the goal, its return. What separates 'never tried from there' from 'tried and failed' per start."""
 CHECKPOINT_VERSION = 3  # 3: optimisers in two parameter groups (seed_adam)
-CHECKPOINTS = ("checkpoint.pt", "checkpoint.prev.pt")
-RUN_FILES = ("config.json", "provenance.json", "metrics.csv", "start_weights.npz", "episodes.csv", *CHECKPOINTS, "final.pt", "rollouts.mp4")
-"""What a run directory holds besides policies/: what --overwrite removes."""
 
 
 class RunInterrupted(Exception):
@@ -99,6 +103,20 @@ class RunInterrupted(Exception):
     def __init__(self, signum: int, step: int):
         super().__init__(f"stopped by {signal.Signals(signum).name} at step {step} after writing a checkpoint")
         self.signum, self.step = signum, step
+
+
+class PolicyDiverged(ValueError):
+    """A policy produced a non-finite action: its networks diverged."""
+
+
+def _finite_policy(policy):
+    """`policy`, raising PolicyDiverged instead of returning a non-finite action."""
+    def act(obs: np.ndarray) -> np.ndarray:
+        actions = policy(obs)
+        if not np.isfinite(actions).all():
+            raise PolicyDiverged(f"its evaluation policy's actions are not finite ({actions.reshape(-1, 2)[0]})")
+        return actions
+    return act
 
 
 class RunDirectoryError(ValueError):
@@ -151,8 +169,10 @@ class RunConfig:
                 setattr(self, name, section(**getattr(self, name)))
         if self.method not in METHOD_STRATEGIES:
             raise ValueError(f"unknown method {self.method!r}; expected one of {METHODS}")
-        for name, minimum in (("steps", 1), ("eval_every", 1), ("eval_episodes", 1), ("demo_subset", 1), ("seed", 0)):
+        for name, minimum in (("steps", 1), ("eval_every", 1), ("demo_subset", 1)):
             check_integer(name, getattr(self, name), minimum)
+        check_integer("seed", self.seed, 0, MAX_SEED)
+        check_integer("eval_episodes", self.eval_episodes, 1, MAX_EVAL_EPISODES)
         check_number("hybrid_fraction", self.hybrid_fraction, 0, 1, low_inclusive=True)
         if self.demos not in (500, 7500):
             raise ValueError(f"demos must be 500 or 7500, got {self.demos!r}")
@@ -335,8 +355,8 @@ class SeedRun:
         self.rows.append(row)
         self.weight_history.append(self.strategy.probabilities.copy())
         self.write_results()
-        (self.dir / "policies").mkdir(exist_ok=True)
-        atomic_write(self.dir / "policies" / f"step_{step}.pt", lambda f: torch.save(actor, f))
+        (self.dir / POLICIES).mkdir(exist_ok=True)
+        save_torch(self.dir / POLICIES / f"step_{step}.pt", actor)
         return row
 
     def write_results(self) -> None:
@@ -346,7 +366,8 @@ class SeedRun:
         writer.writerows(self.rows)
         atomic_write_text(self.dir / "metrics.csv", text.getvalue())
         steps = np.array([row["step"] for row in self.rows], dtype=np.int64)
-        weights = np.array(self.weight_history).reshape(len(steps), -1)
+        # (0, n) before the first evaluation: a run stopped then still writes (and resumes from) its files
+        weights = np.array(self.weight_history, dtype=np.float64).reshape(len(steps), len(self.strategy.probabilities))
         atomic_write(self.dir / "start_weights.npz",
                      lambda f: np.savez(f, steps=steps, states=self.states, probabilities=weights))
         if self.config.method not in OFFLINE_METHODS:  # offline methods run no episodes
@@ -386,7 +407,7 @@ class SeedRun:
             link.unlink(missing_ok=True)
             os.link(path, link)  # a second name for the same file, then an atomic rename over prev
             os.replace(link, self.dir / CHECKPOINTS[1])
-        atomic_write(path, lambda f: torch.save(state, f))
+        save_torch(path, state)
 
     def load(self, state: dict) -> None:
         self.episodes = state["episodes"]
@@ -447,6 +468,8 @@ class Run:
         self.step = 0
         self.elapsed = 0.0  # wall time of earlier sessions of this run
         self.stop_signal: int | None = None  # set by SIGINT/SIGTERM: checkpoint and stop after this step
+        self.active = np.ones(len(configs), dtype=bool)  # False: the seed diverged and stopped
+        self.diverged: dict[int, int] = {}  # seed -> the step it stopped at
 
     # single-seed conveniences
     @property
@@ -507,25 +530,33 @@ class Run:
                         guide_actions = self.guide.act(np.stack([s.obs for s in seed_runs]), deterministic=True)
                         actions = [g if use else a for use, g, a in zip(guided, guide_actions, actions)]
                 actions = np.asarray(actions, dtype=np.float32)
+                diverged = self.active & ~np.isfinite(actions).all(axis=1)
+                if diverged.any():
+                    self._stop_diverged(diverged, f"its policy's action {actions[diverged.argmax()]} is not finite")
+                actions[~self.active] = 0.0  # a stopped seed's sub-env idles; its transitions are dropped
                 next_obs, rewards, terminated, truncated, info = self.envs.step(actions)
-                ended = np.array([s.observe(self.step + 1, a, r, o, term, trunc, success)
-                                  for s, a, r, o, term, trunc, success in zip(
-                                      seed_runs, actions, rewards, next_obs, terminated, truncated, info["is_success"])])
+                ended = np.array([active and s.observe(self.step + 1, a, r, o, term, trunc, success)
+                                  for s, active, a, r, o, term, trunc, success in zip(
+                                      seed_runs, self.active, actions, rewards, next_obs, terminated, truncated,
+                                      info["is_success"])])
                 if ended.any():
                     self._start_episodes(ended)
             self.step += 1
             if self.step >= learning_starts:
                 stats = self.agent.update(stack_batches([s.sample() for s in seed_runs]))
-                for i, seed_run in enumerate(seed_runs):
-                    seed_run.last_update = {name: float(values[i]) for name, values in stats.items()}
+                for i in np.flatnonzero(self.active):
+                    seed_runs[i].last_update = {name: float(values[i]) for name, values in stats.items()}
             evaluation_due = self.step % config.eval_every == 0 or self.step == config.steps
             if evaluation_due:
                 self.elapsed = time.perf_counter() - start_time
                 rows = self.evaluate()
                 returns = [r["train_return"] for r in rows if np.isfinite(r["train_return"])]
-                bar.set_postfix(p0=f"{np.mean([r['success_p0'] for r in rows]):.2f}",
-                                ood=f"{np.mean([r['success_ood'] for r in rows]):.2f}",
-                                ret=f"{np.mean(returns):.2f}" if returns else "-")
+                if rows:
+                    bar.set_postfix(p0=f"{np.mean([r['success_p0'] for r in rows]):.2f}",
+                                    ood=f"{np.mean([r['success_ood'] for r in rows]):.2f}",
+                                    ret=f"{np.mean(returns):.2f}" if returns else "-")
+            if not self.active.any():
+                break  # every seed stopped: nothing left to train
             if evaluation_due or self.stop_signal is not None:
                 self.elapsed = time.perf_counter() - start_time
                 self.save()
@@ -536,6 +567,19 @@ class Run:
         bar.close()
         self.elapsed = time.perf_counter() - start_time
         self.save("final.pt")
+
+    def _stop_diverged(self, mask: np.ndarray, reason: str) -> None:
+        """Stop the seeds in `mask` whose networks diverged: they write nothing more (their files keep
+        their last checkpoint and evaluation) while the rest of the batch trains on unchanged, since
+        every seed's slice of the batched networks is updated from its own loss alone."""
+        for i in np.flatnonzero(mask):
+            seed_run = self.seed_runs[i]
+            self.active[i] = False
+            self.diverged[seed_run.config.seed] = self.step
+            last = seed_run.rows[-1]["step"] if seed_run.rows else None
+            kept = f"its files keep step {last}" if last is not None else "it had not been evaluated yet"
+            print(f"warning: seed {seed_run.config.seed} stopped at step {self.step}: {reason} (its networks "
+                  f"diverged); {kept}; the other seeds go on", file=sys.stderr, flush=True)
 
     def _start_episodes(self, mask: np.ndarray, seeds: Sequence[int] | None = None) -> None:
         """Reset the sub-envs in `mask` to the starts their seeds' strategies choose (a candidate
@@ -567,9 +611,15 @@ class Run:
         """Each seed's deterministic policy on the fixed p0 and ood episodes; rows written to each run."""
         rows = []
         for i, seed_run in enumerate(self.seed_runs):
-            policy = self.policy(i)
-            p0 = evaluate(policy, self.eval_envs, "p0")
-            ood = evaluate(policy, self.eval_envs, "ood")
+            if not self.active[i]:
+                continue
+            policy = _finite_policy(self.policy(i))
+            try:
+                p0 = evaluate(policy, self.eval_envs, "p0")
+                ood = evaluate(policy, self.eval_envs, "ood")
+            except PolicyDiverged as error:
+                self._stop_diverged(np.arange(len(self.seed_runs)) == i, str(error))
+                continue
             actor = {name: tensor[i:i + 1].clone() for name, tensor in self.agent.actor.state_dict().items()}
             rows.append(seed_run.record(self.step, p0, ood, actor, self.elapsed))
         return rows
@@ -581,6 +631,8 @@ class Run:
     # --- checkpoints ----------------------------------------------------------------------------
     def save(self, name: str = "checkpoint.pt") -> None:
         for i, seed_run in enumerate(self.seed_runs):
+            if not self.active[i]:
+                continue  # a diverged seed keeps its last good checkpoint
             state = seed_run.state(self.step, self.elapsed, self.agent.seed_state(i))
             if self.guide is not None:
                 state.update(guide=self.guide.seed_state(i), guide_trained=self.guide_trained)
@@ -588,25 +640,42 @@ class Run:
 
     def resume(self) -> None:
         """Continue from the newest checkpoint step that every seed has (see the module docstring);
-        from the start if some seed has none."""
-        available = [{} for _ in self.seed_runs]
-        for found, seed_run in zip(available, self.seed_runs):
+        from the start if some seed has none. A damaged checkpoint is moved aside (NAME.damaged) with a
+        one-line warning and the seed continues from its other one; a seed whose checkpoints are all
+        damaged stops the resume, before anything changes."""
+        available, damaged = [], []
+        for seed_run in self.seed_runs:
+            found, bad = {}, []
             for name in CHECKPOINTS:
                 path = seed_run.dir / name
                 if path.exists():
-                    state = _read_checkpoint(path, seed_run.config)
+                    try:
+                        state = _read_checkpoint(path, seed_run.config)
+                    except DamagedFileError as error:
+                        bad.append((path, error))
+                        continue
                     found[state["step"]] = state
+            if bad and not found:
+                raise DamagedFileError(f"every checkpoint of {seed_run.dir} is damaged ({'; '.join(map(str, (e for _, e in bad)))}); "
+                                       "its run cannot continue: train it again with --overwrite, or into another directory")
+            available.append(found)
+            damaged.extend(bad)
+        if all(available):
+            common = set.intersection(*(set(found) for found in available))
+            if not common:
+                steps = {str(s.dir): sorted(found) for s, found in zip(self.seed_runs, available)}
+                raise ValueError(f"the seeds' checkpoints are at different steps {steps}; resume them in separate batches")
+            if max(common) > self.config.steps:
+                raise ValueError(f"the checkpoints of {', '.join(str(s.dir) for s in self.seed_runs)} are at step "
+                                 f"{max(common)}, past steps={self.config.steps}; a run continues to more steps, "
+                                 "never fewer")
+        for path, error in damaged:  # set aside, so the next checkpoint rotation cannot keep it as the fallback
+            os.replace(path, path.with_name(path.name + ".damaged"))
+            print(f"warning: {error}; moved it to {path.name}.damaged and continuing from the other checkpoint",
+                  file=sys.stderr, flush=True)
         if not all(available):
             return
-        common = set.intersection(*(set(found) for found in available))
-        if not common:
-            steps = {str(s.dir): sorted(found) for s, found in zip(self.seed_runs, available)}
-            raise ValueError(f"the seeds' checkpoints are at different steps {steps}; resume them in separate batches")
         self.step = max(common)
-        if self.step > self.config.steps:
-            raise ValueError(f"the checkpoints of {', '.join(str(s.dir) for s in self.seed_runs)} are at step "
-                             f"{self.step}, past steps={self.config.steps}; a run continues to more steps, "
-                             "never fewer")
         states = [found[self.step] for found in available]
         self.elapsed = max(state["elapsed"] for state in states)
         self.agent.load_seed_states([state["agent"] for state in states])
@@ -618,12 +687,11 @@ class Run:
 
 
 def _read_checkpoint(path: Path, config: RunConfig) -> dict:
-    try:
-        state = torch.load(path, weights_only=False)
-    except Exception as error:  # a checkpoint from elsewhere can fail in many ways
-        raise ValueError(f"checkpoint {path} cannot be read ({type(error).__name__}: {error})") from None
+    """A checkpoint's state; DamagedFileError when the file is damaged or not a checkpoint (a resume
+    then falls back to the other one), ValueError when it belongs to another configuration or format."""
+    state = load_torch(path)
     if not isinstance(state, dict) or "version" not in state:
-        raise ValueError(f"checkpoint {path} is not a lava-bridge-mj checkpoint")
+        raise DamagedFileError(f"{path} is not a lava-bridge-mj checkpoint")
     if state["version"] != CHECKPOINT_VERSION:
         raise ValueError(f"checkpoint {path} has format version {state['version']!r} and this lava-bridge-mj "
                          f"reads version {CHECKPOINT_VERSION}: continue it with the version that wrote it, "
@@ -654,7 +722,10 @@ def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seed
             raise ValueError(f"expected one run directory per seed ({len(configs)}), got {len(dirs)}")
     run = Run(configs, dirs)  # builds everything (and checks strategy parameters) before touching disk
     for directory in dirs:
-        directory.mkdir(parents=True, exist_ok=True)
+        try:
+            directory.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise RunDirectoryError(f"cannot create run directory {directory}: {error.strerror or error}") from None
     with ExitStack() as locks:
         for directory in dirs:
             locks.enter_context(_locked(directory))
@@ -664,7 +735,7 @@ def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seed
             for directory in dirs:
                 for name in RUN_FILES:
                     (directory / name).unlink(missing_ok=True)
-                shutil.rmtree(directory / "policies", ignore_errors=True)
+                shutil.rmtree(directory / POLICIES, ignore_errors=True)
         if resume:
             run.resume()
         for seed_config, directory in zip(configs, dirs):
@@ -682,11 +753,17 @@ def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seed
 
 
 def _check_run_directory(config: RunConfig, directory: Path, resume: bool, overwrite: bool) -> None:
-    config_file = directory / "config.json"
-    if not config_file.exists() or overwrite:
+    """Refuse a directory holding any run file unless resuming the same configuration or overwriting."""
+    found = run_files(directory)
+    if not found or overwrite:
         return
     if not resume:
-        raise RunDirectoryError(f"{directory} already holds a run; resume it or overwrite it")
+        raise RunDirectoryError(f"{directory} already holds a run ({', '.join(found)}); resume it or overwrite it")
+    config_file = directory / "config.json"
+    if not config_file.exists():
+        raise RunDirectoryError(f"{directory} holds run files ({', '.join(found)}) but no config.json, so "
+                                "nothing shows they belong to this configuration; not resuming into it "
+                                "(overwrite it, or choose another directory)")
     try:
         existing = json.loads(config_file.read_text())
     except ValueError:

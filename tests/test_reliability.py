@@ -12,6 +12,7 @@ import subprocess
 import sys
 import time
 
+import numpy as np
 import pytest
 import torch
 
@@ -67,8 +68,8 @@ def wait_for_checkpoints(process, out, count, timeout=120):
         time.sleep(0.01)
 
 
-def resume_to_the_end(config_file, out):
-    result = subprocess.run(command(config_file, out, "--resume"), capture_output=True, text=True)
+def resume_to_the_end(config_file, out, *extra):
+    result = subprocess.run(command(config_file, out, "--resume", *extra), capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
 
 
@@ -151,14 +152,21 @@ def test_bad_config_files_are_refused_without_writing(tmp_path, content, message
     assert not out.exists()
 
 
-def test_a_foreign_or_corrupt_checkpoint_is_refused_and_earlier_results_kept(config_file, reference, tmp_path):
+def test_a_corrupt_checkpoint_falls_back_and_two_are_refused_keeping_earlier_results(config_file, reference, tmp_path):
     out = tmp_path / "run"
-    subprocess.run(command(config_file, out), check=True, capture_output=True)
+    subprocess.run(command(config_file, out, "--steps", "1000"), check=True, capture_output=True)
     (out / "checkpoint.pt").write_bytes(b"not a checkpoint")
-    kept = (out / "metrics.csv").read_text()
     result = subprocess.run(command(config_file, out, "--resume"), capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert "warning:" in result.stderr and "checkpoint.pt is damaged or not a torch file" in result.stderr
+    assert metrics(out) == reference
+    for name in ("checkpoint.pt", "checkpoint.prev.pt"):
+        (out / name).write_bytes(b"not a checkpoint")
+    kept = (out / "metrics.csv").read_text()
+    result = subprocess.run(command(config_file, out, "--resume", "--steps", "1750"), capture_output=True, text=True)
     assert result.returncode == 2
-    assert "cannot be read" in result.stderr and "Traceback" not in result.stderr
+    assert "every checkpoint of" in result.stderr and "Traceback" not in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
     assert (out / "metrics.csv").read_text() == kept
 
 
@@ -206,3 +214,87 @@ def test_a_killed_batch_resumes_and_each_seed_matches_its_single_seed_run(config
     assert result.returncode == 0, result.stderr
     assert metrics(out / "seed0") == reference
     assert metrics(out / "seed1") != reference
+
+
+def wait_for(predicate, process, what, timeout=120):
+    """Poll every millisecond until `predicate()`; the process must still be running."""
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        assert process.poll() is None, f"the run ended before {what}"
+        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+        time.sleep(0.001)
+
+
+def test_a_stop_before_the_first_evaluation_resumes(config_file, reference, tmp_path):
+    """Ctrl-C before the first evaluation writes a checkpoint with no evaluation rows; --resume must
+    continue from it (it failed reshaping the empty weight history) and match the uninterrupted run."""
+    out = tmp_path / "run"
+    process = subprocess.Popen(command(config_file, out, "--eval-every", "1500"), stdout=subprocess.DEVNULL,
+                               stderr=subprocess.PIPE, text=True)
+    wait_for(lambda: (out / "provenance.json").exists(), process, "training started")
+    time.sleep(1.0)  # inside the loop, far from its only evaluation at the last step
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == 128 + signal.SIGINT, stderr
+    assert not (out / "metrics.csv").exists(), "the stop came after the first evaluation: the trial tests nothing"
+    assert torch.load(out / "checkpoint.pt", weights_only=False)["step"] > 0
+    assert f"--out {out}" in stderr and "--resume" in stderr
+    resume_to_the_end(config_file, out, "--eval-every", "1500")
+    full = tmp_path / "full"
+    subprocess.run(command(config_file, full, "--eval-every", "1500"), check=True, capture_output=True)
+    assert metrics(out) == metrics(full)
+    assert (out / "checkpoint.pt").read_bytes() != b""
+
+
+def test_signals_at_seeded_random_moments_then_resume_match(config_file, reference, tmp_path):
+    """SIGINT or SIGTERM at random moments of a run (a seeded draw over its whole length, training and
+    evaluation alike): each stops with a checkpoint, and the resumed run equals the uninterrupted one."""
+    rng = np.random.default_rng(17)
+    for trial, delay in enumerate(rng.uniform(0.0, 4.0, size=3)):
+        out = tmp_path / f"run{trial}"
+        process = subprocess.Popen(command(config_file, out), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                   text=True)
+        wait_for(lambda: (out / "provenance.json").exists(), process, "training started")
+        time.sleep(delay)
+        process.send_signal((signal.SIGINT, signal.SIGTERM)[trial % 2])
+        _, stderr = process.communicate(timeout=60)
+        assert process.returncode in (0, 128 + signal.SIGINT, 128 + signal.SIGTERM), stderr
+        assert "Traceback" not in stderr
+        resume_to_the_end(config_file, out)
+        assert metrics(out) == reference, f"trial {trial}: stopped {delay:.2f} s into training"
+
+
+BATCH = {**TINY, "steps": 750, "eval_episodes": 10}
+
+
+@pytest.fixture(scope="module")
+def batch_config(tmp_path_factory):
+    path = tmp_path_factory.mktemp("batch-config") / "batch.json"
+    path.write_text(json.dumps(BATCH))
+    return path
+
+
+@pytest.fixture(scope="module")
+def batch_reference(batch_config, tmp_path_factory):
+    out = tmp_path_factory.mktemp("batch-reference")
+    subprocess.run(command(batch_config, out, "--seeds", "0,1"), check=True, capture_output=True)
+    return [metrics(out / f"seed{s}") for s in (0, 1)]
+
+
+@pytest.mark.parametrize("moment", ["during an evaluation", "during the final write"])
+def test_sigkill_of_a_batch_at_a_critical_moment_then_resume_matches(batch_config, batch_reference, tmp_path, moment):
+    """Killed while seed 1 is evaluated (seed 0's snapshot of that evaluation is written, seed 1's not
+    yet), or between the two seeds' final.pt: the resumed batch equals the uninterrupted one."""
+    out = tmp_path / "batch"
+    batch = command(batch_config, out, "--seeds", "0,1")
+    process = subprocess.Popen(batch, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    first, second = ((out / f"seed{s}" / "policies" / "step_500.pt") for s in (0, 1)) \
+        if moment == "during an evaluation" else ((out / f"seed{s}" / "final.pt") for s in (0, 1))
+    wait_for(first.exists, process, moment)
+    process.kill()
+    process.wait()
+    assert not second.exists(), f"the kill came too late to be {moment}"
+    result = subprocess.run([*batch, "--resume"], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert [metrics(out / f"seed{s}") for s in (0, 1)] == batch_reference
+    assert all((out / f"seed{s}" / "final.pt").exists() for s in (0, 1))

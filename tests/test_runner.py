@@ -18,7 +18,8 @@ from lava_bridge_mj.agents.sac import SACConfig
 from lava_bridge_mj.agents.start_strategies import GoalDistSS
 from lava_bridge_mj.eval import cli
 from lava_bridge_mj.eval.provenance import git_state
-from lava_bridge_mj.eval.runner import EPISODE_FIELDS, METHOD_STRATEGIES, METHODS, METRIC_FIELDS, Run, RunConfig, train
+from lava_bridge_mj.eval.runner import (EPISODE_FIELDS, METHOD_STRATEGIES, METHODS, METRIC_FIELDS, Run, RunConfig,
+                                        RunDirectoryError, train)
 
 TINY_SAC = SACConfig(hidden_sizes=(16, 16), batch_size=32, buffer_size=500, learning_starts=100)
 
@@ -156,10 +157,13 @@ def test_provenance_records_each_training_session_with_the_strategy_settings(tmp
     assert [(s["from_step"], s["to_step"]) for s in sessions] == [(0, 300), (300, 500)]
     assert sessions[0] == first
 
-    # a new run into a directory with a stray record starts its own
+    # a stray record makes a run directory: refused, kept, and replaced only on overwrite
     (tmp_path / "fresh").mkdir()
     (tmp_path / "fresh/provenance.json").write_text(json.dumps(sessions))
-    train(config, tmp_path / "fresh", progress=False)
+    with pytest.raises(RunDirectoryError, match=r"already holds a run \(provenance.json\)"):
+        train(config, tmp_path / "fresh", progress=False)
+    assert json.loads((tmp_path / "fresh/provenance.json").read_text()) == sessions
+    train(config, tmp_path / "fresh", overwrite=True, progress=False)
     assert [s["from_step"] for s in json.loads((tmp_path / "fresh/provenance.json").read_text())] == [0]
     omega = tiny_config("omega_ss", steps=100, seed=7)
     train(omega, tmp_path / "omega", progress=False)
@@ -204,12 +208,15 @@ def test_resume_refuses_to_shorten_a_run_and_changes_nothing(tmp_path):
     (["--method", "ppo"], "invalid choice: 'ppo'"),
     (["--method", "auxss", "--steps", "0"], "expected a positive integer, got 0"),
     (["--method", "auxss", "--steps", "many"], "expected a positive integer, got 'many'"),
-    (["--method", "auxss", "--seed", "-1"], "non-negative integer seed"),
+    (["--method", "auxss", "--seed", "-1"], "expected an integer seed in [0, 4294967295], got -1"),
+    (["--method", "auxss", "--seed", "99999999999999999999999"], "expected an integer seed in [0, 4294967295], got 99999999999999999999999"),
+    (["--method", "auxss", "--seeds", "0-99999999999"], "in [0, 4294967295], got '0-99999999999'"),
+    (["--method", "auxss", "--eval-episodes", "1000000"], "eval_episodes must be an integer in [1, 1000], got 1000000"),
     (["--method", "auxss", "--demos", "1000"], "invalid choice: 1000"),
     (["--method", "auxss", "--eval-every", "-3"], "expected a positive integer, got -3"),
     ([], "the following arguments are required: --method"),
     (["--method", "auxss", "--seeds", "0-x"], "expected seeds like 0-24 or 0,3,5-7, got '0-x'"),
-    (["--method", "auxss", "--seeds", "5-2"], "expected a range of non-negative seeds low-high, got '5-2'"),
+    (["--method", "auxss", "--seeds", "5-2"], "expected a range of seeds low-high in [0, 4294967295], got '5-2'"),
     (["--method", "auxss", "--seeds", "0-3,2"], "seeds must be distinct; repeated: [2]"),
     (["--method", "auxss", "--seeds", "0-3", "--seed", "1"], "not allowed with argument --seeds"),
 ])
@@ -373,3 +380,115 @@ def test_hysac_offline_buffer_holds_every_demo_and_is_never_overwritten(tmp_path
     # relabelled with the run's rewards: the goal gives 2 here
     np.testing.assert_array_equal(offline.reward, np.where(demos["rewards"] == 1.0, 2.0, 0.0))
     assert offline.reward.sum() == 2.0 * demos["terminations"].sum()
+
+
+# --- run directories are never silently replaced; damaged checkpoints fall back -------------------------
+@pytest.fixture(scope="module")
+def finished_run(tmp_path_factory):
+    """A tiny finished run (both checkpoints present), copied by each test that damages it."""
+    out = tmp_path_factory.mktemp("finished") / "run"
+    train(tiny_config(steps=300), out, progress=False)
+    return out
+
+
+def copy_run(source, target):
+    shutil.copytree(source, target, ignore=shutil.ignore_patterns(".lock"))
+    return target
+
+
+def flip_a_data_bit(path):
+    """Flip one bit inside the largest record of a torch zip archive: its data, not its headers."""
+    import zipfile
+
+    with zipfile.ZipFile(path) as archive:
+        info = max(archive.infolist(), key=lambda i: i.file_size)
+    data = bytearray(path.read_bytes())
+    offset = info.header_offset + 30 + len(info.filename.encode()) + len(info.extra)  # past the local header
+    data[offset + info.file_size // 2] ^= 0x10
+    path.write_bytes(bytes(data))
+
+
+def test_a_directory_with_run_files_but_no_config_is_never_trained_into(finished_run, tmp_path, capsys):
+    """Removing config.json used to make a run directory look empty: another configuration then replaced
+    its checkpoints and metrics without --overwrite. Any run file now makes it a run directory."""
+    out = copy_run(finished_run, tmp_path / "run")
+    (out / "config.json").unlink()
+    before = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file() and p.name != ".lock"}
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(["--method", "sac", "--steps", "200", "--out", str(out), "--no-progress"])
+    assert exit_info.value.code == 2
+    assert "already holds a run (provenance.json, metrics.csv" in capsys.readouterr().err
+    for resume in (False, True):
+        with pytest.raises(RunDirectoryError, match="holds run files|already holds a run"):
+            train(tiny_config(method="sac", steps=200), out, resume=resume, progress=False)
+    after = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file() and p.name != ".lock"}
+    assert after == before
+
+
+def test_an_unwritable_run_directory_is_one_line_and_exit_2(capsys):
+    assert cli.main(["--method", "auxss", "--out", "/proc/forbidden", "--steps", "10", "--no-progress"]) == 2
+    assert capsys.readouterr().err == ("lava-bridge-bench: error: cannot create run directory /proc/forbidden: "
+                                       "No such file or directory\n")
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(["--method", "auxss", "--out", "", "--steps", "10", "--no-progress"])
+    assert exit_info.value.code == 2
+    assert "argument --out: expected a directory, got ''" in capsys.readouterr().err
+    with pytest.raises(RunDirectoryError, match="cannot create run directory /proc/forbidden"):
+        train(tiny_config(steps=10), "/proc/forbidden", progress=False)
+
+
+def test_a_bit_flip_in_a_checkpoint_or_snapshot_is_detected(finished_run, tmp_path):
+    from lava_bridge_mj.eval.run_files import DamagedFileError, load_torch
+
+    out = copy_run(finished_run, tmp_path / "run")
+    for path in (out / "checkpoint.pt", out / "policies" / "step_300.pt"):
+        intact = load_torch(path)
+        flip_a_data_bit(path)
+        torch.load(path, weights_only=False)  # torch itself reads the flipped file without complaint
+        with pytest.raises(DamagedFileError, match=f"{path.name} is damaged"):
+            load_torch(path)
+        assert intact is not None
+
+
+@pytest.mark.parametrize("damaged", [("checkpoint.pt",), ("checkpoint.prev.pt",), ("checkpoint.pt", "checkpoint.prev.pt")])
+def test_a_damaged_checkpoint_falls_back_to_the_other_one(finished_run, tmp_path, capsys, damaged):
+    """One damaged checkpoint: a warning, the file set aside, and the run continues from the other one
+    to the same end as the uninterrupted run; both damaged: the resume stops, changing nothing."""
+    extended = copy_run(finished_run, tmp_path / "reference")
+    train(tiny_config(steps=500), extended, resume=True, progress=False)
+    out = copy_run(finished_run, tmp_path / "run")
+    for name in damaged:
+        flip_a_data_bit(out / name)
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file() and p.name != ".lock"}
+    if len(damaged) == 2:
+        with pytest.raises(ValueError, match="every checkpoint of .* is damaged.*--overwrite"):
+            train(tiny_config(steps=500), out, resume=True, progress=False)
+        assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file() and p.name != ".lock"} == before
+        return
+    train(tiny_config(steps=500), out, resume=True, progress=False)
+    err = capsys.readouterr().err
+    assert err.count("warning:") == 1 and f"{damaged[0]} is damaged" in err
+    assert (out / f"{damaged[0]}.damaged").read_bytes() == before[damaged[0]]
+    assert metrics_without_wall_time(out) == metrics_without_wall_time(extended)
+
+
+@pytest.mark.parametrize("where", ["in training", "in evaluation"])
+def test_a_diverged_seed_stops_alone_and_the_batch_trains_on(tmp_path, capsys, where):
+    """Seed 1's actor is made NaN before training: its first policy action (a training step after
+    warm-up, or an evaluation before it) is not finite. Seed 1 stops with a warning; seed 0's files
+    equal its run alone."""
+    config = tiny_config(steps=300, eval_every=100 if where == "in training" else 50, seed=0)
+    alone = tmp_path / "alone"
+    train(config, alone, progress=False)
+    dirs = [tmp_path / "batch0", tmp_path / "batch1"]
+    for d in dirs:
+        d.mkdir()
+    run = Run([config, dataclasses.replace(config, seed=1)], dirs)
+    with torch.no_grad():
+        for parameter in run.agent.actor.parameters():
+            parameter[1] = float("nan")
+    run.train(progress=False)
+    assert run.diverged == {1: 100 if where == "in training" else 50}
+    assert "warning: seed 1 stopped at step" in capsys.readouterr().err
+    assert metrics_without_wall_time(dirs[0]) == metrics_without_wall_time(alone)
+    assert (dirs[0] / "final.pt").exists() and not (dirs[1] / "final.pt").exists()
