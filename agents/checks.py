@@ -2,24 +2,11 @@
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
+from lava_bridge_mj.checks import check_integer, check_number, check_real_array
 
-def check_number(name: str, value: Any, low: float = 0.0, high: float = math.inf, *,
-                 low_inclusive: bool = False, high_inclusive: bool = True) -> None:
-    """ValueError unless `value` is a real number in the interval, e.g. "gamma must be a number in (0, 1]"."""
-    above = value >= low if low_inclusive else value > low
-    below = value <= high if high_inclusive else value < high
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (above and below):
-        interval = f"{'[' if low_inclusive else '('}{low:g}, {high:g}{']' if high_inclusive else ')'}"
-        raise ValueError(f"{name} must be a number in {interval}, got {value!r}")
-
-
-def check_integer(name: str, value: Any, minimum: int) -> None:
-    """ValueError unless `value` is an int >= minimum, e.g. "batch_size must be an integer >= 1"."""
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+__all__ = ["check_hidden_sizes", "check_integer", "check_number", "check_real_array"]
 
 
 def check_hidden_sizes(sizes: Any) -> tuple[int, ...]:

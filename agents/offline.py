@@ -42,8 +42,8 @@ class BCConfig:
 
     def __post_init__(self) -> None:
         self.hidden_sizes = check_hidden_sizes(self.hidden_sizes)
-        check_number("lr", self.lr)
-        check_integer("batch_size", self.batch_size, 1)
+        self.lr = check_number("lr", self.lr)
+        self.batch_size = check_integer("batch_size", self.batch_size, 1)
 
 
 @dataclass
@@ -71,13 +71,13 @@ class IQLConfig:
 
     def __post_init__(self) -> None:
         self.hidden_sizes = check_hidden_sizes(self.hidden_sizes)
-        check_number("lr", self.lr)
-        check_integer("batch_size", self.batch_size, 1)
-        check_number("gamma", self.gamma, 0, 1)
-        check_number("tau", self.tau, 0, 1)
-        check_number("expectile", self.expectile, 0, 1, high_inclusive=False)
-        check_number("temperature", self.temperature)
-        check_number("max_weight", self.max_weight)
+        self.lr = check_number("lr", self.lr)
+        self.batch_size = check_integer("batch_size", self.batch_size, 1)
+        self.gamma = check_number("gamma", self.gamma, 0, 1)
+        self.tau = check_number("tau", self.tau, 0, 1)
+        self.expectile = check_number("expectile", self.expectile, 0, 1, high_inclusive=False)
+        self.temperature = check_number("temperature", self.temperature)
+        self.max_weight = check_number("max_weight", self.max_weight)
 
 
 def expectile_loss(diff: torch.Tensor, expectile: float) -> torch.Tensor:

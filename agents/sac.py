@@ -67,13 +67,15 @@ class SACConfig:
 
     def __post_init__(self) -> None:
         self.hidden_sizes = check_hidden_sizes(self.hidden_sizes)
-        check_number("lr", self.lr)
-        check_number("gamma", self.gamma, 0, 1)
-        check_number("tau", self.tau, 0, 1)
-        check_number("initial_alpha", self.initial_alpha)
-        check_integer("batch_size", self.batch_size, 1)
-        check_integer("buffer_size", self.buffer_size, 1)
-        check_integer("learning_starts", self.learning_starts, 0)
+        self.lr = check_number("lr", self.lr)
+        self.gamma = check_number("gamma", self.gamma, 0, 1)
+        self.tau = check_number("tau", self.tau, 0, 1)
+        self.initial_alpha = check_number("initial_alpha", self.initial_alpha)
+        if self.target_entropy is not None:
+            self.target_entropy = check_number("target_entropy", self.target_entropy, -math.inf, math.inf)
+        self.batch_size = check_integer("batch_size", self.batch_size, 1)
+        self.buffer_size = check_integer("buffer_size", self.buffer_size, 1)
+        self.learning_starts = check_integer("learning_starts", self.learning_starts, 0)
         if not isinstance(self.critic_layer_norm, bool):
             raise ValueError(f"critic_layer_norm must be true or false, got {self.critic_layer_norm!r}")
 
