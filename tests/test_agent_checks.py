@@ -1,4 +1,5 @@
-"""Hyperparameter validation of every agent config and the shared number checks."""
+"""Hyperparameter validation of every agent config, the shared number checks, and the memory estimate
+that refuses configurations that cannot fit before any work."""
 
 from __future__ import annotations
 
@@ -9,11 +10,13 @@ import re
 
 import numpy as np
 import pytest
+import torch
 
-from lava_bridge_mj.agents.checks import check_integer, check_number
+from lava_bridge_mj.agents.checks import check_fits_in_memory, check_integer, check_number, physical_memory
 from lava_bridge_mj.agents.jsrl import JSRLConfig
-from lava_bridge_mj.agents.offline import BCConfig, IQLConfig
-from lava_bridge_mj.agents.sac import SACConfig
+from lava_bridge_mj.agents.offline import BC, IQL, BCConfig, IQLConfig
+from lava_bridge_mj.agents.replay_buffer import FIELDS, ReplayBuffer
+from lava_bridge_mj.agents.sac import SAC, SACConfig
 from lava_bridge_mj.eval.runner import RunConfig
 
 INF, NAN = float("inf"), float("nan")
@@ -103,3 +106,63 @@ def test_check_number_and_check_integer():
     assert check_integer("n", np.int32(3), 1) == 3 and type(check_integer("n", np.int32(3), 1)) is int
     with pytest.raises(ValueError, match=r"^n must be an integer in \[1, 4\], got 5$"):
         check_integer("n", 5, 1, 4)
+
+
+# --- memory ---------------------------------------------------------------------------------------
+def test_sac_memory_estimate_counts_its_buffer_and_its_networks_with_gradients_and_adam_moments():
+    # 64-64 networks on 4-d observations and 2-d actions: actor 4,740 parameters, twin critics 9,346
+    config = SACConfig()
+    assert config.memory_bytes(seeds=1, obs_dim=4, act_dim=2) == {
+        "buffer_size": 10_000 * 12 * 4, "hidden_sizes": (4 * (4_740 + 9_346) + 9_346) * 4}
+    assert config.memory_bytes(seeds=5, obs_dim=4, act_dim=2)["hidden_sizes"] == 5 * 262_760
+
+
+def test_memory_estimates_match_what_the_agents_allocate():
+    obs_dim, act_dim, seeds = 4, 2, [0, 1]
+    config = SACConfig(hidden_sizes=(16, 8), buffer_size=100, batch_size=4, critic_layer_norm=True)
+    buffer = ReplayBuffer(config.buffer_size, obs_dim, act_dim)
+    buffer_bytes = sum(getattr(buffer, name).nbytes for name in FIELDS)
+    assert buffer_bytes == config.memory_bytes(1, obs_dim, act_dim)["buffer_size"]
+    batch = {"obs": torch.rand(2, 4, obs_dim), "action": torch.rand(2, 4, act_dim) * 2 - 1,
+             "next_obs": torch.rand(2, 4, obs_dim), "reward": torch.rand(2, 4), "terminated": torch.zeros(2, 4)}
+    agents = [(SAC(obs_dim, act_dim, config, seeds), config),
+              (BC(obs_dim, act_dim, BCConfig(hidden_sizes=(16, 8)), seeds), BCConfig(hidden_sizes=(16, 8))),
+              (IQL(obs_dim, act_dim, IQLConfig(hidden_sizes=(16, 8)), seeds), IQLConfig(hidden_sizes=(16, 8)))]
+    for agent, agent_config in agents:
+        agent.update(batch)  # gradients and Adam moments exist from the first update on
+        parts = agent._parts().values()
+        networks = [p for p in parts if isinstance(p, torch.nn.Module)]
+        optimizers = [p for p in parts if isinstance(p, torch.optim.Optimizer)]
+        tensors = [t for net in networks for t in net.parameters()]
+        tensors += [t.grad for net in networks for t in net.parameters() if t.grad is not None]
+        tensors += [v for opt in optimizers for group in opt.param_groups for p in group["params"]
+                    if p is not getattr(agent, "log_alpha", None)  # SAC's entropy coefficients: no network
+                    for v in (opt.state[p]["exp_avg"], opt.state[p]["exp_avg_sq"])]
+        allocated = sum(t.numel() * t.element_size() for t in tensors)
+        assert allocated == agent_config.memory_bytes(len(seeds), obs_dim, act_dim)["hidden_sizes"], type(agent)
+
+
+def test_a_configuration_that_cannot_fit_is_refused_naming_the_field_the_estimate_and_the_memory():
+    config = SACConfig(buffer_size=10**12)
+    with pytest.raises(ValueError) as error:
+        check_fits_in_memory(config, seeds=5, obs_dim=4, act_dim=2, memory=8 * 2**30)
+    assert str(error.value) == (
+        "SACConfig.buffer_size=1000000000000 does not fit in memory: 5 seeds need at least 218.3 TiB "
+        "(SACConfig.buffer_size: 218.3 TiB, SACConfig.hidden_sizes: 1.3 MiB), more than the 8.0 GiB of "
+        "physical memory here")
+    with pytest.raises(ValueError, match=r"^SACConfig\.hidden_sizes=\(100000, 100000\) does not fit in memory: "
+                                         r"1 seed needs at least 521\.6 GiB"):
+        check_fits_in_memory(SACConfig(hidden_sizes=[100_000, 100_000]), seeds=1, obs_dim=4, act_dim=2,
+                             memory=8 * 2**30)
+
+
+def test_the_estimate_is_compared_with_the_memory_given_or_the_machines():
+    sac, iql = SACConfig(), IQLConfig()
+    need = sum(sum(c.memory_bytes(3, 4, 2).values()) for c in (sac, iql))
+    check_fits_in_memory(sac, iql, seeds=3, obs_dim=4, act_dim=2, memory=need)  # exactly fits
+    with pytest.raises(ValueError, match=r"^IQLConfig\.hidden_sizes=\(256, 256\) does not fit"):
+        check_fits_in_memory(sac, iql, seeds=3, obs_dim=4, act_dim=2, memory=need - 1)  # the larger share named
+    assert isinstance(physical_memory(), int) and physical_memory() > 2**20
+    check_fits_in_memory(sac, seeds=5, obs_dim=4, act_dim=2)  # the defaults fit on any machine
+    with pytest.raises(ValueError, match=r"more than the [0-9.]+ [GT]iB of physical memory here$"):
+        check_fits_in_memory(SACConfig(buffer_size=10**12), seeds=5, obs_dim=4, act_dim=2)
