@@ -61,9 +61,9 @@ class LavaBridgeEnv(gymnasium.Env):
     ## Arguments
     `render_mode` (None or "rgb_array"), `width`/`height` of rendered frames (at most the model's
     1920 x 1080 off-screen framebuffer), `render_quality` ("fast": no shadows, reflections or
-    anti-aliasing; "high": MuJoCo's defaults), the three rewards (finite numbers), and every field of `Layout` (room and bridge sizes, goal, p0 blobs, ood spots, ball, damping, gear,
-    timestep, frame skip), e.g. `gymnasium.make("LavaBridge-v0", bridge_width=0.4)`; or a whole
-    `layout=Layout(...)`.
+    anti-aliasing; "high": MuJoCo's defaults), the three rewards (finite numbers), and every field of
+    `Layout` (room and bridge sizes, goal, p0 blobs, ood spots, ball, damping, gear, timestep, frame
+    skip), e.g. `gymnasium.make("LavaBridge-v0", bridge_width=0.4)`; or a whole `layout=Layout(...)`.
 
     ## Version History
     - v0: initial release.
