@@ -10,7 +10,7 @@ and at each reset picks an index into it; some learn from how each episode went.
 - `state_dict()` / `load_state_dict(d)`: the learned state as plain Python values (JSON and pickle
   both work), so a resumed run continues where it stopped.
 
-The strategies are the paper's (DESIGN.md section 3): `AuxSS` (Algorithm 2), `OmegaSS`,
+The strategies are the paper's (docs/design.md, section 1): `AuxSS` (Algorithm 2), `OmegaSS`,
 `UniformSS`, `GoalDistSS`, and `P0Start` for the MDP's own start distribution.
 `make_start_strategy(name, states, **params)` builds one by its CLI name.
 """
@@ -179,7 +179,7 @@ class AuxSS(StartStrategy):
         sigma: width of the Gaussian kernel `lam_j = exp(-||S_j - S_i||^2 / (2 sigma^2))` on scaled
             states (see `state_scale`). `lam_i = 1` and 0 < lam <= 1, so weights stay in [delta, 1].
             (The paper prints `exp(+...) / (sqrt(2 pi) sigma)`: a typo whose lam can exceed 1 and
-            drive weights negative; DESIGN.md section 3.) lam > 0.5 within 1.18 sigma. Placeholder
+            drive weights negative; docs/design.md, section 2.) lam > 0.5 within 1.18 sigma. Placeholder
             default 0.3: lam > 0.5 within 0.35 m (or m/s), a few consecutive steps of a trajectory
             at bridge speeds of about 2 m/s (0.2 m per 0.1 s step); `effective_neighbourhood()`
             reports what it means for a given demo set.
