@@ -1,28 +1,18 @@
-"""Validation shared by every hyperparameter dataclass: one message format for each kind of bad value."""
+"""Validation shared by every hyperparameter dataclass: one message format for each kind of bad value,
+and a check that a configuration's arrays can fit in the machine's memory at all."""
 
 from __future__ import annotations
 
-import math
+import os
 from typing import Any
 
+from lava_bridge_mj.checks import check_integer, check_number, check_real_array
 
-def check_number(name: str, value: Any, low: float = 0.0, high: float = math.inf, *,
-                 low_inclusive: bool = False, high_inclusive: bool = True) -> None:
-    """ValueError unless `value` is a real number in the interval, e.g. "gamma must be a number in (0, 1]"."""
-    above = value >= low if low_inclusive else value > low
-    below = value <= high if high_inclusive else value < high
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (above and below):
-        interval = f"{'[' if low_inclusive else '('}{low:g}, {high:g}{']' if high_inclusive else ')'}"
-        raise ValueError(f"{name} must be a number in {interval}, got {value!r}")
+__all__ = ["check_fits_in_memory", "check_hidden_sizes", "check_integer", "check_number", "check_real_array",
+           "physical_memory"]
 
-
-def check_integer(name: str, value: Any, minimum: int, maximum: int | None = None) -> None:
-    """ValueError unless `value` is an int >= minimum (and <= maximum), e.g. "batch_size must be an
-    integer >= 1"."""
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum or (
-            maximum is not None and value > maximum):
-        expected = f"in [{minimum}, {maximum}]" if maximum is not None else f">= {minimum}"
-        raise ValueError(f"{name} must be an integer {expected}, got {value!r}")
+FLOAT_BYTES = 4
+"""Replay buffers and networks hold float32."""
 
 
 def check_hidden_sizes(sizes: Any) -> tuple[int, ...]:
@@ -31,3 +21,44 @@ def check_hidden_sizes(sizes: Any) -> tuple[int, ...]:
             or not all(isinstance(n, int) and not isinstance(n, bool) and n >= 1 for n in sizes)):
         raise ValueError(f"hidden_sizes must be a non-empty list of positive integers, got {sizes!r}")
     return tuple(sizes)
+
+
+def physical_memory() -> int | None:
+    """The machine's physical memory in bytes (os.sysconf), or None where the OS does not say."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, OSError, ValueError):  # no sysconf (Windows) or no such name
+        return None
+
+
+def check_fits_in_memory(*configs: Any, seeds: int, obs_dim: int, act_dim: int,
+                         memory: int | None = None) -> None:
+    """ValueError unless the arrays of `configs` (e.g. a run's SACConfig, and the IQLConfig of its JSRL
+    guide; anything with a `memory_bytes(seeds, obs_dim, act_dim)` method giving bytes by field) for
+    `seeds` seeds trained together fit in `memory` bytes (default: the machine's physical
+    memory). The estimate, each config's `memory_bytes` summed, is a lower bound: activations,
+    checkpoint copies and the envs come on top. So a configuration refused here cannot run, and
+    fails at once with a message naming the field that takes the most, instead of a MemoryError
+    (or the kernel's OOM kill) minutes later."""
+    memory = physical_memory() if memory is None else memory
+    if memory is None:
+        return
+    parts = [(config, field, size) for config in configs
+             for field, size in config.memory_bytes(seeds, obs_dim, act_dim).items()]
+    total = sum(size for _, _, size in parts)
+    if total <= memory:
+        return
+    config, field, _ = max(parts, key=lambda part: part[2])
+    shares = ", ".join(f"{type(c).__name__}.{f}: {_format_bytes(s)}" for c, f, s in parts)
+    who = "1 seed needs" if seeds == 1 else f"{seeds} seeds need"
+    raise ValueError(f"{type(config).__name__}.{field}={getattr(config, field)!r} does not fit in memory: "
+                     f"{who} at least {_format_bytes(total)} ({shares}), "
+                     f"more than the {_format_bytes(memory)} of physical memory here")
+
+
+def _format_bytes(size: float) -> str:
+    units = ("B", "KiB", "MiB", "GiB", "TiB")
+    power = 0
+    while size >= 1024 and power < len(units) - 1:
+        size, power = size / 1024, power + 1
+    return f"{size:.1f} {units[power]}"

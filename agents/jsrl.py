@@ -41,11 +41,11 @@ class JSRLConfig:
     def __post_init__(self) -> None:
         if self.guide not in ("iql", "bc"):
             raise ValueError(f"guide must be 'iql' or 'bc', got {self.guide!r}")
-        check_integer("guide_steps", self.guide_steps, 0)
-        check_integer("initial_horizon", self.initial_horizon, 0)
-        check_integer("stages", self.stages, 1)
-        check_integer("window", self.window, 1)
-        check_number("threshold", self.threshold, 0, 1, low_inclusive=True)
+        self.guide_steps = check_integer("guide_steps", self.guide_steps, 0)
+        self.initial_horizon = check_integer("initial_horizon", self.initial_horizon, 0)
+        self.stages = check_integer("stages", self.stages, 1)
+        self.window = check_integer("window", self.window, 1)
+        self.threshold = check_number("threshold", self.threshold, 0, 1, low_inclusive=True)
 
 
 class JSRLCurriculum:

@@ -15,7 +15,7 @@ Everything is generic in `obs_dim`, `act_dim` and `hidden_sizes`. Actions live i
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import torch
 from torch import nn
@@ -173,3 +173,10 @@ def soft_update(target: Sequence[torch.Tensor], source: Sequence[torch.Tensor], 
     """Polyak averaging, in place, of matching parameter lists: target <- (1 - tau) * target + tau * source.
     Lists rather than modules, so callers walk their modules once, not at every update."""
     torch._foreach_lerp_(list(target), list(source), tau)
+
+
+def parameter_count(build: Callable[[], nn.Module]) -> int:
+    """The number of parameters of the module `build()` makes, built on torch's meta device: shapes
+    only, no memory, so sizes far beyond the machine's can be counted."""
+    with torch.device("meta"):
+        return sum(p.numel() for p in build().parameters())

@@ -24,8 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from .checks import check_hidden_sizes, check_integer, check_number
-from .networks import MLP, TanhGaussianActor, TwinQ, init_member, soft_update
+from .checks import FLOAT_BYTES, check_hidden_sizes, check_integer, check_number
+from .networks import MLP, TanhGaussianActor, TwinQ, init_member, parameter_count, soft_update
 from .seed_batch import SeedBatchedAgent, seed_adam
 
 
@@ -42,8 +42,14 @@ class BCConfig:
 
     def __post_init__(self) -> None:
         self.hidden_sizes = check_hidden_sizes(self.hidden_sizes)
-        check_number("lr", self.lr)
-        check_integer("batch_size", self.batch_size, 1)
+        self.lr = check_number("lr", self.lr)
+        self.batch_size = check_integer("batch_size", self.batch_size, 1)
+
+    def memory_bytes(self, seeds: int, obs_dim: int, act_dim: int) -> dict[str, int]:
+        """Bytes of `seeds` seeds' policies, each parameter with its gradient and two Adam moments
+        (the demo transitions are a few thousand); for `check_fits_in_memory`."""
+        actor = parameter_count(lambda: TanhGaussianActor(1, obs_dim, act_dim, self.hidden_sizes))
+        return {"hidden_sizes": seeds * FLOAT_BYTES * 4 * actor}
 
 
 @dataclass
@@ -71,13 +77,21 @@ class IQLConfig:
 
     def __post_init__(self) -> None:
         self.hidden_sizes = check_hidden_sizes(self.hidden_sizes)
-        check_number("lr", self.lr)
-        check_integer("batch_size", self.batch_size, 1)
-        check_number("gamma", self.gamma, 0, 1)
-        check_number("tau", self.tau, 0, 1)
-        check_number("expectile", self.expectile, 0, 1, high_inclusive=False)
-        check_number("temperature", self.temperature)
-        check_number("max_weight", self.max_weight)
+        self.lr = check_number("lr", self.lr)
+        self.batch_size = check_integer("batch_size", self.batch_size, 1)
+        self.gamma = check_number("gamma", self.gamma, 0, 1)
+        self.tau = check_number("tau", self.tau, 0, 1)
+        self.expectile = check_number("expectile", self.expectile, 0, 1, high_inclusive=False)
+        self.temperature = check_number("temperature", self.temperature)
+        self.max_weight = check_number("max_weight", self.max_weight)
+
+    def memory_bytes(self, seeds: int, obs_dim: int, act_dim: int) -> dict[str, int]:
+        """Bytes of `seeds` seeds' networks: policy, twin critics and value network, each parameter
+        with its gradient and two Adam moments, plus the target critics; for `check_fits_in_memory`."""
+        actor = parameter_count(lambda: TanhGaussianActor(1, obs_dim, act_dim, self.hidden_sizes))
+        critic = parameter_count(lambda: TwinQ(1, obs_dim, act_dim, self.hidden_sizes))
+        value = parameter_count(lambda: MLP(1, obs_dim, 1, self.hidden_sizes))
+        return {"hidden_sizes": seeds * FLOAT_BYTES * (4 * (actor + critic + value) + critic)}
 
 
 def expectile_loss(diff: torch.Tensor, expectile: float) -> torch.Tensor:

@@ -24,8 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from .checks import check_hidden_sizes, check_integer, check_number
-from .networks import TanhGaussianActor, TwinQ, init_member, soft_update
+from .checks import FLOAT_BYTES, check_hidden_sizes, check_integer, check_number
+from .networks import TanhGaussianActor, TwinQ, init_member, parameter_count, soft_update
 from .seed_batch import SeedBatchedAgent, seed_adam
 
 
@@ -67,15 +67,27 @@ class SACConfig:
 
     def __post_init__(self) -> None:
         self.hidden_sizes = check_hidden_sizes(self.hidden_sizes)
-        check_number("lr", self.lr)
-        check_number("gamma", self.gamma, 0, 1)
-        check_number("tau", self.tau, 0, 1)
-        check_number("initial_alpha", self.initial_alpha)
-        check_integer("batch_size", self.batch_size, 1)
-        check_integer("buffer_size", self.buffer_size, 1)
-        check_integer("learning_starts", self.learning_starts, 0)
+        self.lr = check_number("lr", self.lr)
+        self.gamma = check_number("gamma", self.gamma, 0, 1)
+        self.tau = check_number("tau", self.tau, 0, 1)
+        self.initial_alpha = check_number("initial_alpha", self.initial_alpha)
+        if self.target_entropy is not None:
+            self.target_entropy = check_number("target_entropy", self.target_entropy, -math.inf, math.inf)
+        self.batch_size = check_integer("batch_size", self.batch_size, 1)
+        self.buffer_size = check_integer("buffer_size", self.buffer_size, 1)
+        self.learning_starts = check_integer("learning_starts", self.learning_starts, 0)
         if not isinstance(self.critic_layer_norm, bool):
             raise ValueError(f"critic_layer_norm must be true or false, got {self.critic_layer_norm!r}")
+
+    def memory_bytes(self, seeds: int, obs_dim: int, act_dim: int) -> dict[str, int]:
+        """Bytes of the arrays `seeds` seeds of SAC hold, by the field that sizes them: each seed's replay
+        buffer (obs, action, reward, next_obs, terminated), and the networks: every trained parameter
+        with its gradient and two Adam moments, plus the target critics. For `check_fits_in_memory`."""
+        actor = parameter_count(lambda: TanhGaussianActor(1, obs_dim, act_dim, self.hidden_sizes))
+        critic = parameter_count(lambda: TwinQ(1, obs_dim, act_dim, self.hidden_sizes, self.critic_layer_norm))
+        floats = {"buffer_size": self.buffer_size * (2 * obs_dim + act_dim + 2),
+                  "hidden_sizes": 4 * (actor + critic) + critic}
+        return {field: seeds * FLOAT_BYTES * count for field, count in floats.items()}
 
 
 def bellman_target(reward: torch.Tensor, terminated: torch.Tensor, next_value: torch.Tensor,

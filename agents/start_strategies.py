@@ -10,7 +10,7 @@ and at each reset picks an index into it; some learn from how each episode went.
 - `state_dict()` / `load_state_dict(d)`: the learned state as plain Python values (JSON and pickle
   both work), so a resumed run continues where it stopped.
 
-The strategies are the paper's (DESIGN.md section 3): `AuxSS` (Algorithm 2), `OmegaSS`,
+The strategies are the paper's (docs/design.md, section 1): `AuxSS` (Algorithm 2), `OmegaSS`,
 `UniformSS`, `GoalDistSS`, and `P0Start` for the MDP's own start distribution.
 `make_start_strategy(name, states, **params)` builds one by its CLI name.
 """
@@ -23,6 +23,8 @@ import math
 from typing import Any, Sequence
 
 import numpy as np
+
+from .checks import check_integer, check_number, check_real_array
 
 NO_STATE = -1
 """What `P0Start.sample` returns: start from the env's own reset, not from a candidate state.
@@ -57,17 +59,6 @@ def _sample_index(weights: np.ndarray, rng: np.random.Generator) -> int:
     cumulative = np.cumsum(weights)
     # side="right" skips zero-weight entries, and rng.random() < 1 keeps the index below n
     return int(np.searchsorted(cumulative, rng.random() * cumulative[-1], side="right"))
-
-
-def _positive(name: str, value: Any, upper: float = math.inf) -> float:
-    """`value` as a float in (0, upper]; ValueError naming `name` otherwise."""
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if not 0 < number <= upper:  # also rejects NaN
-        raise ValueError(f"{name} must be in (0, {upper:g}], got {value!r}")
-    return number
 
 
 class StartStrategy:
@@ -188,7 +179,7 @@ class AuxSS(StartStrategy):
         sigma: width of the Gaussian kernel `lam_j = exp(-||S_j - S_i||^2 / (2 sigma^2))` on scaled
             states (see `state_scale`). `lam_i = 1` and 0 < lam <= 1, so weights stay in [delta, 1].
             (The paper prints `exp(+...) / (sqrt(2 pi) sigma)`: a typo whose lam can exceed 1 and
-            drive weights negative; DESIGN.md section 3.) lam > 0.5 within 1.18 sigma. Placeholder
+            drive weights negative; docs/design.md, section 2.) lam > 0.5 within 1.18 sigma. Placeholder
             default 0.3: lam > 0.5 within 0.35 m (or m/s), a few consecutive steps of a trajectory
             at bridge speeds of about 2 m/s (0.2 m per 0.1 s step); `effective_neighbourhood()`
             reports what it means for a given demo set.
@@ -227,20 +218,18 @@ class AuxSS(StartStrategy):
         timeout_weight: float | None = None,
     ):
         super().__init__(states)
-        if not (isinstance(horizon, (int, np.integer)) and horizon >= 1):
-            raise ValueError(f"horizon must be an integer >= 1, got {horizon!r}")
         if kernel_dims not in ("full", "position"):
             raise ValueError(f"kernel_dims must be 'full' or 'position', got {kernel_dims!r}")
-        scale = np.array(state_scale, dtype=np.float64)
-        if scale.shape != (4,) or not (np.isfinite(scale).all() and (scale > 0).all()):
+        scale = check_real_array("state_scale", state_scale, (4,)).astype(np.float64)
+        if not (scale > 0).all():
             raise ValueError(f"state_scale must be 4 positive finite numbers (x, y, vx, vy), got {state_scale!r}")
-        self.horizon = int(horizon)
-        self.delta = _positive("delta", delta, upper=1.0)
-        self.sigma = _positive("sigma", sigma)
-        self.ema = None if ema is None else _positive("ema", ema, upper=1.0)
+        self.horizon = check_integer("horizon", horizon, 1)
+        self.delta = check_number("delta", delta, 0, 1)
+        self.sigma = check_number("sigma", sigma)
+        self.ema = None if ema is None else check_number("ema", ema, 0, 1)
         self.count_successes = bool(count_successes)
         self.kernel_dims = kernel_dims
-        self.timeout_weight = None if timeout_weight is None else _positive("timeout_weight", timeout_weight, upper=1.0)
+        self.timeout_weight = None if timeout_weight is None else check_number("timeout_weight", timeout_weight, 0, 1)
         if self.timeout_weight is not None and self.timeout_weight < self.delta:
             raise ValueError(f"timeout_weight must be in [delta, 1] = [{self.delta}, 1], got {timeout_weight!r}")
         self.state_scale = scale
@@ -301,12 +290,10 @@ class OmegaSS(StartStrategy):
 
     def __init__(self, states: Any, omega: Any, clamp: float = 0.05):
         super().__init__(states)
-        omega = np.array(omega, dtype=np.float64)
-        if omega.shape != (len(self._states),):
-            raise ValueError(f"omega must have shape ({len(self._states)},), one per state, got {omega.shape}")
-        if not (np.isfinite(omega).all() and (omega >= 0).all() and (omega <= 1).all()):
+        omega = check_real_array("omega", omega, (len(self._states),)).astype(np.float64)  # one per state
+        if not ((omega >= 0).all() and (omega <= 1).all()):
             raise ValueError("omega must hold probabilities in [0, 1]")
-        self.clamp = _positive("clamp", clamp, upper=1.0)
+        self.clamp = check_number("clamp", clamp, 0, 1)
         self.omega = omega
         self._weights = 1.0 / np.maximum(omega, self.clamp)
 
@@ -376,18 +363,13 @@ class GoalDistSS(StartStrategy):
     def __init__(self, states: Any, goal: Sequence[float], temperature: float = 0.5,
                  temperature_growth: float = 1.005, max_temperature: float = 50.0):
         super().__init__(states)
-        goal = np.array(goal, dtype=np.float64)
-        if goal.shape != (2,) or not np.isfinite(goal).all():
-            raise ValueError(f"goal must be a finite position (x, y), got {goal!r}")
-        self.goal = goal
-        self.initial_temperature = _positive("temperature", temperature)
-        self.temperature_growth = _positive("temperature_growth", temperature_growth)
-        if self.temperature_growth < 1:
-            raise ValueError(f"temperature_growth must be >= 1 (the temperature rises), got {temperature_growth!r}")
-        self.max_temperature = _positive("max_temperature", max_temperature)
+        self.goal = check_real_array("goal", goal, (2,)).astype(np.float64)
+        self.initial_temperature = check_number("temperature", temperature)
+        self.temperature_growth = check_number("temperature_growth", temperature_growth, 1, low_inclusive=True)
+        self.max_temperature = check_number("max_temperature", max_temperature)
         if self.max_temperature < self.initial_temperature:
             raise ValueError(f"max_temperature={max_temperature!r} must be >= temperature={temperature!r}")
-        distance = np.linalg.norm(self._states[:, :2] - goal, axis=1)
+        distance = np.linalg.norm(self._states[:, :2] - self.goal, axis=1)
         self._excess_distance = distance - distance.min()
         self.episodes = 0
         self._refresh_weights()

@@ -1,6 +1,6 @@
 """The single-seed training path against an earlier revision of this package, side by side in one run.
 
-Issue 4's target: batching seeds must not make one seed slower. This checks out REV (default 5eff605,
+The target: batching seeds must not make one seed slower. This checks out REV (default 5eff605,
 the last commit before the batched trainer) into a temporary git worktree, and times the same
 single-seed `train()` call (SAC from p0, 64x64, one update per step after 1,000 warm-up steps, one
 final evaluation episode per start distribution) in fresh subprocesses, alternating the two trees so

@@ -1,6 +1,6 @@
 """The paper's findings on Lava Bridge, each checked against a fixed criterion on the runs at hand.
 
-`check_findings(groups)` returns one `Finding` per claim of issue 8 (findings 1-6), with the
+`check_findings(groups)` returns one `Finding` per claim of the paper (findings 1-6), with the
 numbers it rests on and a verdict: *reproduced*, *partly*, *not reproduced*, or *missing runs* when a
 group it needs is absent. The criteria are written down here, before and independently of any
 result, as the most direct reading of the paper's words (section 5); they are deliberately simple

@@ -11,6 +11,7 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
+from lava_bridge_mj.checks import REAL_KINDS, check_integer, check_number, check_real_array
 from lava_bridge_mj.layout import Layout
 from lava_bridge_mj.mjcf import load_model
 from lava_bridge_mj.starts import START_NAMES, start_distribution
@@ -58,11 +59,11 @@ class LavaBridgeEnv(gymnasium.Env):
     physics step, from MuJoCo's contacts. `gymnasium.make` truncates at 500 steps.
 
     ## Arguments
-    `render_mode` (None or "rgb_array"), `width`/`height` of rendered frames, `render_quality`
-    ("fast": no shadows, reflections or anti-aliasing; "high": MuJoCo's defaults), the three rewards,
-    and every field of `Layout` (room and bridge sizes, goal, p0 blobs, ood spots, ball, damping, gear,
-    timestep, frame skip), e.g. `gymnasium.make("LavaBridge-v0", bridge_width=0.4)`; or a whole
-    `layout=Layout(...)`.
+    `render_mode` (None or "rgb_array"), `width`/`height` of rendered frames (at most the model's
+    1920 x 1080 off-screen framebuffer), `render_quality` ("fast": no shadows, reflections or
+    anti-aliasing; "high": MuJoCo's defaults), the three rewards (finite numbers), and every field of
+    `Layout` (room and bridge sizes, goal, p0 blobs, ood spots, ball, damping, gear, timestep, frame
+    skip), e.g. `gymnasium.make("LavaBridge-v0", bridge_width=0.4)`; or a whole `layout=Layout(...)`.
 
     ## Version History
     - v0: initial release.
@@ -85,19 +86,29 @@ class LavaBridgeEnv(gymnasium.Env):
     ):
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode={render_mode!r}; expected None or 'rgb_array'")
-        if render_quality not in ("fast", "high"):
+        if not isinstance(render_quality, str) or render_quality not in ("fast", "high"):
             raise ValueError(f"render_quality={render_quality!r}; expected 'fast' or 'high'")
         unknown = set(layout_fields) - {f.name for f in dataclasses.fields(Layout)}
         if unknown:
             raise TypeError(f"unknown LavaBridgeEnv arguments {sorted(unknown)}; Layout fields and "
                             "render_mode, layout, goal_reward, lava_reward, step_reward, width, height, "
                             "render_quality are accepted")
+        # a reward is returned as given, so a string or NaN here would reach the learner unseen
+        self.goal_reward, self.lava_reward, self.step_reward = (
+            check_number(name, value, -math.inf, math.inf) for name, value in
+            (("goal_reward", goal_reward), ("lava_reward", lava_reward), ("step_reward", step_reward)))
+        if layout is not None and not isinstance(layout, Layout):
+            raise ValueError(f"layout must be a Layout, got {layout!r}")
         self.layout = dataclasses.replace(layout or Layout(), **layout_fields)
-        self.goal_reward, self.lava_reward, self.step_reward = goal_reward, lava_reward, step_reward
         self.render_mode = render_mode
-        self.width, self.height, self.render_quality = width, height, render_quality
+        self.render_quality = render_quality
 
         self.model = load_model(self.layout)
+        # MuJoCo's off-screen framebuffer bounds a frame (the model's <global offwidth/offheight>); checked
+        # here, because the renderer is made at the first render and a size <= 0 aborts the process there
+        framebuffer = self.model.vis.global_
+        self.width = check_integer("width", width, 1, framebuffer.offwidth)
+        self.height = check_integer("height", height, 1, framebuffer.offheight)
         self.data = mujoco.MjData(self.model)
         self._probe = mujoco.MjData(self.model)  # scratch data: validate a state without touching self.data
         self.frame_skip = self.layout.frame_skip
@@ -173,15 +184,7 @@ class LavaBridgeEnv(gymnasium.Env):
 
     @staticmethod
     def _as_vector(name: str, value: Any, size: int = 2) -> np.ndarray:
-        try:
-            vector = np.array(value, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ValueError(f"{name} must be {size} numbers, got {value!r}") from None
-        if vector.shape != (size,):
-            raise ValueError(f"{name} must have shape ({size},), got shape {vector.shape}: {value!r}")
-        if not np.isfinite(vector).all():
-            raise ValueError(f"{name} must be finite, got {vector}")
-        return vector
+        return check_real_array(name, value, (size,)).astype(np.float64)  # a copy: the caller's array may change
 
     # --- gymnasium API -------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -222,12 +225,13 @@ class LavaBridgeEnv(gymnasium.Env):
 
     @staticmethod
     def _checked_action(action: Any) -> np.ndarray:
-        action = np.asarray(action, dtype=np.float64)
-        if action.shape != (2,):
-            raise ValueError(f"action must have shape (2,), got shape {action.shape}")
-        if not (math.isfinite(action[0]) and math.isfinite(action[1])):
-            raise ValueError(f"action must be finite, got {action}")
-        return action
+        array = np.asarray(action)
+        # the hot path: a dtype-kind test and two scalar tests cost less than check_real_array's
+        # np.isfinite, which only runs to word the error
+        if (array.dtype.kind in REAL_KINDS and array.shape == (2,)
+                and math.isfinite(array[0]) and math.isfinite(array[1])):
+            return array
+        return check_real_array("action", action, (2,))  # raises, naming what is wrong
 
     def _advance(self, data: mujoco.MjData, action: np.ndarray) -> tuple[float, bool, bool]:
         """One env step of `data` (frame_skip physics steps) under a checked action: (reward, lava, success).

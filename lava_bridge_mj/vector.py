@@ -24,6 +24,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from lava_bridge_mj.checks import check_integer, check_real_array
 from lava_bridge_mj.lava_bridge import MAX_EPISODE_STEPS, LavaBridgeEnv
 
 VECTOR_RESET_KEYS = ("state", "start", "reset_mask")
@@ -41,14 +42,13 @@ class LavaBridgeVectorEnv(VectorEnv):
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int = MAX_EPISODE_STEPS, **env_kwargs: Any):
-        if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
-            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+        self.num_envs = check_integer("num_envs", num_envs, 1)
+        self.max_episode_steps = check_integer("max_episode_steps", max_episode_steps, 1)
         if "render_mode" in env_kwargs and env_kwargs["render_mode"] is not None:
             raise ValueError("LavaBridgeVectorEnv does not render; render a single LavaBridgeEnv instead")
         env_kwargs.pop("render_mode", None)
-        self.task = LavaBridgeEnv(**env_kwargs)  # the model, rewards, state checks and start distributions
-        self.num_envs = num_envs
-        self.max_episode_steps = max_episode_steps
+        # the model, rewards, state checks and start distributions; it checks every env argument
+        self.task = LavaBridgeEnv(**env_kwargs)
         self.datas = [mujoco.MjData(self.task.model) for _ in range(num_envs)]
         self.single_observation_space = self.task.observation_space
         self.single_action_space = self.task.action_space
@@ -70,9 +70,8 @@ class LavaBridgeVectorEnv(VectorEnv):
         return self._observations(), self._info(np.zeros(self.num_envs, bool), np.zeros(self.num_envs, bool))
 
     def step(self, actions):
-        actions = np.asarray(actions, dtype=np.float64)
-        if actions.shape != (self.num_envs, 2):
-            raise ValueError(f"actions must have shape ({self.num_envs}, 2), got shape {actions.shape}")
+        # checked as a whole before any sub-env moves, so a bad row leaves every sub-env where it was
+        actions = check_real_array("actions", actions, (self.num_envs, 2))
         task = self.task
         rewards = np.zeros(self.num_envs)
         lava = np.zeros(self.num_envs, dtype=bool)
@@ -81,7 +80,7 @@ class LavaBridgeVectorEnv(VectorEnv):
             if self.autoreset[i]:
                 self._reset_one(i, "p0")
                 continue
-            rewards[i], lava[i], success[i] = task._advance(data, task._checked_action(actions[i]))
+            rewards[i], lava[i], success[i] = task._advance(data, actions[i])
             self.episode_steps[i] += 1
         terminated = lava | success
         truncated = ~terminated & ~self.autoreset & (self.episode_steps >= self.max_episode_steps)
@@ -111,9 +110,8 @@ class LavaBridgeVectorEnv(VectorEnv):
             if mask.shape != (self.num_envs,) or mask.dtype != bool:
                 raise ValueError(f"reset_mask must be a bool array of shape ({self.num_envs},), got {options['reset_mask']!r}")
         if "state" in options:
-            states = np.asarray(options["state"], dtype=np.float64)
-            if states.shape != (self.num_envs, 4):
-                raise ValueError(f"reset option 'state' must have shape ({self.num_envs}, 4), got {states.shape}")
+            # finiteness is checked per reset row below: rows of the other sub-envs are ignored
+            states = check_real_array("reset option 'state'", options["state"], (self.num_envs, 4), finite=False)
             starts = [self.task._check_state(s[:2], s[2:]) if m else None for s, m in zip(states, mask)]
         else:
             name = options.get("start", "p0")
@@ -124,11 +122,12 @@ class LavaBridgeVectorEnv(VectorEnv):
     def _seeds(self, seed: int | list[int | None] | None) -> list[int | None]:
         if seed is None:
             return [None] * self.num_envs
-        if isinstance(seed, int):
+        if not isinstance(seed, (list, tuple)):
+            seed = check_integer("seed", seed, 0)
             return [seed + i for i in range(self.num_envs)]  # as SyncVectorEnv seeds its sub-envs
         if len(seed) != self.num_envs:
             raise ValueError(f"expected {self.num_envs} seeds, got {len(seed)}")
-        return list(seed)
+        return [None if s is None else check_integer("seed", s, 0) for s in seed]
 
     def _observations(self) -> np.ndarray:
         return np.stack([np.concatenate([d.qpos, d.qvel]) for d in self.datas])

@@ -381,7 +381,9 @@ BAD_RESET_OPTIONS = [
     ({"state": [[-3.0, 0.0], [0.0, 0.0]]}, r"shape \(4,\).*\(2, 2\)"),
     ({"state": ["a", "b", "c", "d"]}, "'a'"),
     ({"state": None}, "shape"),
-    ({"qpos": "ab"}, "qpos must be 2 numbers"),
+    ({"qpos": "ab"}, "qpos must be finite real numbers of shape \\(2,\\), got 'ab'"),
+    ({"qpos": [-3.0 + 1j, 0.0]}, r"qpos must be finite real numbers.*1j"),  # not its real part
+    ({"state": [[-3.0, 0.0], [0.0]]}, "state must be finite real numbers"),  # ragged
     ({"qpos": [-3.0, 0.0, 1.0]}, r"qpos must have shape \(2,\)"),
     ({"qpos": [-3.0, 0.0], "qvel": [0.0, np.nan]}, "qvel must be finite"),
     ({"state": [5.55, 0.0, 0.0, 0.0]}, r"outside the maze"),     # centre inside the east wall
@@ -432,6 +434,11 @@ def test_states_overlapping_a_wall_by_less_than_a_radius_are_accepted(env):
     ([[0.0, 0.0]], r"shape \(2,\)"),
     (0.5, r"shape \(2,\)"),
     (["a", "b"], "'a'"),
+    ([0.5 + 1j, 0.0], r"action must be finite real numbers of shape \(2,\), got \[\(0\.5\+1j\), 0\.0\]"),
+    (np.array([0.5, 0.2], dtype=np.complex64), "action must be finite real numbers"),
+    (object(), "action must be finite real numbers of shape \\(2,\\), got <object object"),
+    ([object(), 0.0], "action must be finite real numbers"),
+    (None, "action must be finite real numbers"),
 ])
 def test_bad_actions_raise(env, action, message):
     env.reset(options={"state": SAFE_STATE})
@@ -477,6 +484,40 @@ def test_bad_layout_fields_raise_naming_the_field(kwargs, field):
 def test_non_finite_goal_is_rejected():
     with pytest.raises(ValueError, match=r"Layout\.goal"):
         Layout(goal=(float("nan"), float("nan")))
+
+
+BAD_ENV_ARGUMENTS = [
+    ({"lava_reward": "x"}, "lava_reward must be a finite number, got 'x'"),
+    ({"goal_reward": float("nan")}, "goal_reward must be a finite number, got nan"),
+    ({"step_reward": float("inf")}, "step_reward must be a finite number, got inf"),
+    ({"goal_reward": None}, "goal_reward must be a finite number, got None"),
+    ({"lava_reward": True}, "lava_reward must be a finite number, got True"),
+    ({"lava_reward": 1 + 0j}, r"lava_reward must be a finite number, got \(1\+0j\)"),
+    ({"width": -5}, r"width must be an integer in \[1, 1920\], got -5"),
+    ({"width": 0}, r"width must be an integer in \[1, 1920\], got 0"),
+    ({"width": 1921}, r"width must be an integer in \[1, 1920\], got 1921"),  # beyond MuJoCo's framebuffer
+    ({"width": 640.0}, r"width must be an integer in \[1, 1920\], got 640\.0"),
+    ({"height": -5}, r"height must be an integer in \[1, 1080\], got -5"),
+    ({"height": "400"}, r"height must be an integer in \[1, 1080\], got '400'"),
+    ({"render_quality": "ultra"}, "render_quality='ultra'; expected 'fast' or 'high'"),
+    ({"render_quality": ["fast"]}, r"render_quality=\['fast'\]; expected 'fast' or 'high'"),
+    ({"layout": "wide"}, "layout must be a Layout, got 'wide'"),
+]
+
+
+@pytest.mark.parametrize("kwargs, message", BAD_ENV_ARGUMENTS)
+def test_bad_env_arguments_raise_naming_the_argument(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        gymnasium.make("LavaBridge-v0", **kwargs)
+
+
+def test_rewards_may_be_any_finite_real_number():
+    env = LavaBridgeEnv(goal_reward=np.float32(2.5), lava_reward=-1, step_reward=np.int64(0))
+    assert (env.goal_reward, env.lava_reward, env.step_reward) == (2.5, -1.0, 0.0)
+    assert all(type(r) is float for r in (env.goal_reward, env.lava_reward, env.step_reward))
+    env.reset(options={"state": [0, 0, 0, 2.0]})  # on the bridge, heading off its side
+    _, reward, terminated, _, info = env.step([0, 0])
+    assert info["lava"] and terminated and reward == -1.0 and type(reward) is float
 
 
 def test_unknown_make_kwargs_raise_type_error():

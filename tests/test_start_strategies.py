@@ -137,6 +137,11 @@ def test_auxss_effective_neighbourhood_counts_states_within_half_kernel():
     (dict(state_scale=(1, 1, 0, 1)), "state_scale"),
     (dict(timeout_weight=1.5), "timeout_weight"), (dict(timeout_weight=0.0), "timeout_weight"),
     (dict(timeout_weight=0.01, delta=0.05), r"timeout_weight must be in \[delta, 1\]"),
+    (dict(sigma=float("inf")), "^sigma must be a finite number > 0, got inf$"),
+    (dict(delta="0.05"), r"^delta must be a number in \(0, 1\], got '0.05'$"),
+    (dict(ema=[0.1]), r"^ema must be a number in \(0, 1\], got \[0.1\]$"),
+    (dict(horizon=500.0), r"^horizon must be an integer >= 1, got 500.0$"),
+    (dict(state_scale=(1j, 1, 1, 1)), r"^state_scale must be finite real numbers of shape \(4,\)"),
 ])
 def test_auxss_rejects_bad_parameters(params, match):
     with pytest.raises(ValueError, match=match):
@@ -362,7 +367,11 @@ def test_strategy_settings_reject_what_make_start_strategy_rejects():
     ("omega_ss", dict(omega=[1, 1, 1], rollouts=4), "rollouts"),
     ("omega_ss", dict(omega=[1, 1]), "shape"),
     ("goaldist_ss", {}, "goal"),
-    ("goaldist_ss", dict(goal=(0, 0), temperature_growth=0.9), "temperature_growth"),
+    ("goaldist_ss", dict(goal=(0, 0), temperature_growth=0.9), "^temperature_growth must be a finite number >= 1, got 0.9$"),
+    ("goaldist_ss", dict(goal=(0, 0), temperature=float("inf")), "^temperature must be a finite number > 0, got inf$"),
+    ("goaldist_ss", dict(goal=(1j, 0)), r"^goal must be finite real numbers of shape \(2,\)"),
+    ("omega_ss", dict(omega=[object()] * 3), r"^omega must be finite real numbers of shape \(3,\)"),
+    ("omega_ss", dict(omega=[1, 1, 1], clamp="0.1"), r"^clamp must be a number in \(0, 1\], got '0.1'$"),
 ])
 def test_make_start_strategy_rejects_bad_names_and_params(name, params, match):
     with pytest.raises(ValueError, match=match):

@@ -93,3 +93,58 @@ def test_bad_actions_are_refused():
         envs.step(np.zeros(2))
     with pytest.raises(ValueError, match="finite"):
         envs.step(np.array([[0.0, 0.0], [np.nan, 0.0]]))
+
+
+@pytest.mark.parametrize("actions, message", [
+    ([[0.5 + 1j, 0.0], [0.0, 0.0]], r"actions must be finite real numbers of shape \(2, 2\)"),
+    (object(), r"actions must be finite real numbers of shape \(2, 2\), got <object object"),
+    ([[0.5, 0.0], [0.0]], "actions must be finite real numbers"),  # ragged
+    ([[0.5, 0.5], [np.nan, 0.0]], "actions must be finite"),
+    ([[0.5, 0.5], [0.0, np.inf]], "actions must be finite"),
+])
+def test_bad_actions_leave_every_sub_env_where_it_was(actions, message):
+    """The whole batch is checked before any sub-env steps: a bad row does not move the good ones."""
+    envs = LavaBridgeVectorEnv(num_envs=2)
+    before, _ = envs.reset(seed=0)
+    steps = envs.episode_steps.copy()
+    with pytest.raises(ValueError, match=message):
+        envs.step(actions)
+    np.testing.assert_array_equal(envs.get_state(), before)
+    np.testing.assert_array_equal(envs.episode_steps, steps)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"num_envs": 0}, "num_envs must be an integer >= 1, got 0"),
+    ({"num_envs": 2.0}, r"num_envs must be an integer >= 1, got 2\.0"),
+    ({"max_episode_steps": 0}, "max_episode_steps must be an integer >= 1, got 0"),
+    ({"max_episode_steps": "500"}, "max_episode_steps must be an integer >= 1, got '500'"),
+    ({"lava_reward": "x"}, "lava_reward must be a finite number, got 'x'"),
+    ({"goal_reward": float("nan")}, "goal_reward must be a finite number, got nan"),
+    ({"step_reward": float("inf")}, "step_reward must be a finite number, got inf"),
+    ({"width": -5}, r"width must be an integer in \[1, 1920\], got -5"),
+])
+def test_bad_vector_env_arguments_raise_naming_the_argument(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        LavaBridgeVectorEnv(**{"num_envs": 2, **kwargs})
+
+
+@pytest.mark.parametrize("seed, options, message", [
+    (-1, None, "seed must be an integer >= 0, got -1"),
+    ("ab", None, "seed must be an integer >= 0, got 'ab'"),
+    ([0, 1.5], None, r"seed must be an integer >= 0, got 1\.5"),
+    (None, {"state": [[-4.5 + 1j, 0, 0, 0], [-4.5, 0, 0, 0]]}, "reset option 'state' must be finite real numbers"),
+    (None, {"state": object()}, "reset option 'state' must be finite real numbers"),
+])
+def test_bad_reset_arguments_raise_and_nothing_changes(seed, options, message):
+    envs = LavaBridgeVectorEnv(num_envs=2)
+    before, _ = envs.reset(seed=0)
+    with pytest.raises(ValueError, match=message):
+        envs.reset(seed=seed, options=options)
+    np.testing.assert_array_equal(envs.get_state(), before)
+
+
+def test_rows_of_sub_envs_not_reset_are_ignored():
+    envs = LavaBridgeVectorEnv(num_envs=2)
+    before, _ = envs.reset(seed=0)
+    obs, _ = envs.reset(options={"state": [[-4.5, 0.0, 0.0, 0.0], [np.nan] * 4], "reset_mask": np.array([True, False])})
+    np.testing.assert_array_equal(obs, [[-4.5, 0.0, 0.0, 0.0], before[1]])
