@@ -49,7 +49,7 @@ from tqdm.auto import tqdm
 
 import lava_bridge_mj
 from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
-from lava_bridge_mj.agents.checks import check_integer, check_number
+from lava_bridge_mj.agents.checks import check_fits_in_memory, check_integer, check_number
 from lava_bridge_mj.agents.jsrl import JSRLConfig, JSRLCurriculum
 from lava_bridge_mj.agents.offline import BC, IQL, BCConfig, IQLConfig
 from lava_bridge_mj.agents.sac import SAC, SACConfig
@@ -170,17 +170,17 @@ class RunConfig:
         if self.method not in METHOD_STRATEGIES:
             raise ValueError(f"unknown method {self.method!r}; expected one of {METHODS}")
         for name, minimum in (("steps", 1), ("eval_every", 1), ("demo_subset", 1)):
-            check_integer(name, getattr(self, name), minimum)
-        check_integer("seed", self.seed, 0, MAX_SEED)
-        check_integer("eval_episodes", self.eval_episodes, 1, MAX_EVAL_EPISODES)
-        check_number("hybrid_fraction", self.hybrid_fraction, 0, 1, low_inclusive=True)
+            setattr(self, name, check_integer(name, getattr(self, name), minimum))
+        self.seed = check_integer("seed", self.seed, 0, MAX_SEED)
+        self.eval_episodes = check_integer("eval_episodes", self.eval_episodes, 1, MAX_EVAL_EPISODES)
+        self.hybrid_fraction = check_number("hybrid_fraction", self.hybrid_fraction, 0, 1, low_inclusive=True)
         if self.demos not in (500, 7500):
             raise ValueError(f"demos must be 500 or 7500, got {self.demos!r}")
         if not isinstance(self.env, dict):
             raise ValueError(f"env must be a dict of LavaBridgeEnv keyword arguments, got {self.env!r}")
         try:
             lava_bridge_mj.LavaBridgeEnv(**self.env).close()  # refuse bad env arguments before any work
-        except TypeError as error:
+        except (TypeError, ValueError) as error:
             raise ValueError(f"env: {error}") from None
 
     def to_dict(self) -> dict[str, Any]:
@@ -237,6 +237,13 @@ def candidate_states(config: RunConfig) -> np.ndarray:
 def agent_config(config: RunConfig) -> SACConfig | BCConfig | IQLConfig:
     """The hyperparameter section the method trains with."""
     return getattr(config, config.method) if config.method in OFFLINE_METHODS else config.sac
+
+
+def trained_configs(config: RunConfig) -> list[SACConfig | BCConfig | IQLConfig]:
+    """The hyperparameter sections whose networks and buffers the method allocates (JSRL: its learner's
+    and its guide's)."""
+    guide = [getattr(config, config.jsrl.guide)] if config.method == "jsrl" else []
+    return [agent_config(config), *guide]
 
 
 def make_agent(config: RunConfig, seeds: Sequence[int]) -> SAC | BC | IQL:
@@ -713,6 +720,8 @@ def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seed
     from its checkpoints; the configuration must match) or `overwrite` (remove that run's files first).
     While training, every directory is locked against a second process.
     """
+    # before building anything per seed: a batch that cannot fit in memory fails now, not minutes later
+    check_fits_in_memory(*trained_configs(config), seeds=1 if seeds is None else len(seeds), obs_dim=4, act_dim=2)
     if seeds is None:
         configs, dirs = [config], [Path(out_dir)]
     else:

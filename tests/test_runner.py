@@ -492,3 +492,14 @@ def test_a_diverged_seed_stops_alone_and_the_batch_trains_on(tmp_path, capsys, w
     assert "warning: seed 1 stopped at step" in capsys.readouterr().err
     assert metrics_without_wall_time(dirs[0]) == metrics_without_wall_time(alone)
     assert (dirs[0] / "final.pt").exists() and not (dirs[1] / "final.pt").exists()
+
+
+def test_a_batch_or_buffer_that_cannot_fit_in_memory_is_refused_at_once(tmp_path, capsys):
+    """A million seeds, or a 10^12-transition buffer, used to run for minutes or end in MemoryError."""
+    config = tmp_path / "huge.json"
+    config.write_text(json.dumps({"sac": {"buffer_size": 10**12}}))
+    for argv in (["--seeds", "0-1000000"], ["--config", str(config)]):
+        assert cli.main(["--method", "auxss", "--out", str(tmp_path / "run"), "--no-progress", *argv]) == 2
+        err = capsys.readouterr().err
+        assert "does not fit in memory" in err and err.count("\n") == 1
+        assert not (tmp_path / "run").exists()
