@@ -298,3 +298,27 @@ def test_sigkill_of_a_batch_at_a_critical_moment_then_resume_matches(batch_confi
     assert result.returncode == 0, result.stderr
     assert [metrics(out / f"seed{s}") for s in (0, 1)] == batch_reference
     assert all((out / f"seed{s}" / "final.pt").exists() for s in (0, 1))
+
+
+def test_a_write_that_fails_mid_run_is_one_line_and_loses_nothing(config_file, reference, tmp_path):
+    """A full disk, stood in for by a file-size limit (RLIMIT_FSIZE: writes past it fail with EFBIG,
+    as a full disk fails with ENOSPC): the first checkpoint (about 70 kB) fits, the second (about
+    87 kB) does not. One line names the file and how to continue; the files already written stay
+    intact, and the resume reaches the uninterrupted run."""
+    import resource
+
+    out = tmp_path / "run"
+
+    def limit_file_size():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (80_000, 80_000))
+
+    result = subprocess.run(command(config_file, out), capture_output=True, text=True, preexec_fn=limit_file_size)
+    assert result.returncode == 1, result.stderr
+    assert "Traceback" not in result.stderr and len(result.stderr.strip().splitlines()) == 1, result.stderr
+    assert f"cannot write {out / 'checkpoint.pt'}: File too large" in result.stderr
+    assert f"--out {out}" in result.stderr and "--resume" in result.stderr
+    assert torch.load(out / "checkpoint.pt", weights_only=False)["step"] == 250
+    assert not list(out.glob(".*.tmp*")), "a temporary file was left behind"
+    assert metrics(out) == reference[: len(metrics(out))]
+    resume_to_the_end(config_file, out)
+    assert metrics(out) == reference
