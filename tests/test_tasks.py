@@ -1,0 +1,145 @@
+"""The task suite: registration, lookup, per-task layouts, the expert and the shipped demos of every task.
+
+The env's own invariants (exact resets, lava at every physics step, check_env, determinism) are
+parametrized over the tasks in tests/test_env.py, tests/test_env_properties.py and
+tests/test_vector_env.py; this file holds what is specific to the suite.
+"""
+
+from __future__ import annotations
+
+import json
+import types
+from importlib import resources
+
+import gymnasium
+import mujoco
+import numpy as np
+import pytest
+
+import lava_bridge_mj
+from lava_bridge_mj import TASKS, Layout, LavaBridgeEnv, LavaBridgeVectorEnv, ScriptedExpert, load_demos, task_layout
+from lava_bridge_mj.demos import MANIFEST, SHIPPED_SEEDS, SHIPPED_SIZES, content_hash, demo_file, generate_demos
+from lava_bridge_mj.mjcf import VIEW_ASPECT
+from lava_bridge_mj.tasks import TASK_DOCS, placed_layout
+
+TASK_IDS = list(TASKS)
+NEW_TASK_IDS = TASK_IDS[1:]
+ASSETS = resources.files("lava_bridge_mj.assets")
+
+
+def test_suite_starts_with_the_unchanged_reference_task():
+    assert TASK_IDS[0] == lava_bridge_mj.ENV_ID == "LavaBridge-v0"
+    assert TASKS["LavaBridge-v0"] == Layout() == placed_layout()
+    assert len(TASK_IDS) >= 5 and len(set(TASKS.values())) == len(TASKS)  # every task differs
+    assert set(TASK_DOCS) == set(TASKS)
+    for env_id in TASK_IDS:
+        assert env_id.startswith("LavaBridge") and env_id.endswith("-v0"), env_id
+
+
+@pytest.mark.parametrize("env_id", TASK_IDS)
+def test_every_task_is_registered_with_its_layout(env_id):
+    spec = gymnasium.spec(env_id)
+    assert spec.entry_point == "lava_bridge_mj.lava_bridge:LavaBridgeEnv"
+    assert spec.vector_entry_point == "lava_bridge_mj.vector:LavaBridgeVectorEnv"
+    assert spec.max_episode_steps == 500
+    env = gymnasium.make(env_id)
+    assert env.unwrapped.layout == task_layout(env_id) == TASKS[env_id]
+    env.close()
+    envs = gymnasium.make_vec(env_id, num_envs=2)
+    assert isinstance(envs.unwrapped, LavaBridgeVectorEnv)
+    assert envs.unwrapped.task.layout == TASKS[env_id] and envs.unwrapped.max_episode_steps == 500
+    # the documented ways to build a task directly
+    assert LavaBridgeEnv(layout=task_layout(env_id)).layout == TASKS[env_id]
+    assert LavaBridgeVectorEnv(2, layout=task_layout(env_id)).task.layout == TASKS[env_id]
+
+
+def test_reference_task_registers_without_keyword_arguments():
+    assert gymnasium.spec("LavaBridge-v0").kwargs == {}
+
+
+def test_make_keywords_override_single_fields_of_a_task():
+    env = gymnasium.make("LavaBridgeNarrow-v0", damping=2.0).unwrapped
+    assert env.layout.bridge_width == TASKS["LavaBridgeNarrow-v0"].bridge_width != Layout().bridge_width
+    assert env.layout.damping == 2.0
+
+
+@pytest.mark.parametrize("env_id", ["LavaBridge-v1", "lavabridge-v0", "", None])
+def test_unknown_task_ids_are_refused_naming_the_known_ones(env_id):
+    with pytest.raises(ValueError, match=rf"unknown Lava Bridge task {env_id!r}.*'LavaBridge-v0'.*'LavaBridgeNarrow-v0'"):
+        task_layout(env_id)
+    with pytest.raises(ValueError, match="unknown Lava Bridge task"):
+        load_demos(500, env_id=env_id)
+
+
+@pytest.mark.parametrize("env_id", TASK_IDS)
+def test_the_top_camera_shows_the_whole_maze_in_a_default_frame(env_id):
+    """Orthographic: the view is fovy high and fovy * aspect wide; the walls' outer edges fit in both."""
+    env = LavaBridgeEnv(layout=TASKS[env_id])
+    fovy = env.model.cam_fovy[mujoco.mj_name2id(env.model, mujoco.mjtObj.mjOBJ_CAMERA, "top")]
+    hx, hy = env.layout.half_extent
+    t = env.layout.wall_thickness
+    assert fovy / 2 >= hy + t and fovy * VIEW_ASPECT / 2 >= hx + t
+    assert VIEW_ASPECT == env.width / env.height
+
+
+# --- the expert -----------------------------------------------------------------------------------------
+@pytest.mark.parametrize("env_id", TASK_IDS)
+@pytest.mark.parametrize("start", ["p0", "ood"])
+def test_expert_succeeds_on_every_task(env_id, start):
+    env = gymnasium.make(env_id)
+    expert = ScriptedExpert(env)
+    for episode in range(4):
+        obs, _ = env.reset(seed=100 + episode, options={"start": start})
+        for _ in range(500):
+            obs, _, terminated, truncated, info = env.step(expert.act(obs))
+            if terminated or truncated:
+                break
+        assert info["is_success"], (env_id, start, episode, obs, info)
+    env.close()
+
+
+# --- shipped demos --------------------------------------------------------------------------------------
+@pytest.mark.parametrize("env_id", TASK_IDS)
+def test_every_task_ships_both_sets_recorded_in_the_manifest(env_id):
+    manifest = json.loads(ASSETS.joinpath(MANIFEST).read_text())
+    assert list(manifest) == TASK_IDS
+    for size in SHIPPED_SIZES:
+        entry = manifest[env_id][str(size)]
+        assert entry["file"] == demo_file(env_id, size) and entry["seed"] == SHIPPED_SEEDS[size]
+        demos = load_demos(size, env_id=env_id)
+        assert content_hash(demos) == entry["sha256"]
+        assert len(demos["observations"]) == size
+        assert int(demos["episode_ids"][-1]) + 1 == entry["episodes"]
+
+
+@pytest.mark.parametrize("env_id", NEW_TASK_IDS)
+def test_a_task_set_is_its_expert_in_its_layout_from_its_seed(env_id):
+    """The 500 set regenerates bit for bit in the task's env, and its episodes replay exactly there."""
+    demos = load_demos(500, env_id=env_id)
+    env = LavaBridgeEnv(layout=TASKS[env_id])
+    assert content_hash(generate_demos(500, SHIPPED_SEEDS[500], env)) == content_hash(demos)
+    first, _ = env.reset(seed=SHIPPED_SEEDS[500])
+    assert np.array_equal(demos["observations"][0], first)
+    ends = np.flatnonzero(demos["terminations"] | demos["truncations"])
+    starts = np.concatenate([[0], ends[:-1] + 1])
+    for begin, end in zip(starts, ends):
+        state = demos["observations"][begin]
+        assert state[2:].tolist() == [0.0, 0.0]
+        assert any(np.hypot(state[0] - b.x, state[1] - b.y) <= b.radius for b in env.layout.p0_blobs)
+        env.reset(options={"state": state})
+        for t in range(begin, end + 1):
+            obs, reward, terminated, _, _ = env.step(demos["actions"][t])
+            assert np.array_equal(obs, demos["next_observations"][t])
+            assert reward == demos["rewards"][t] and terminated == demos["terminations"][t]
+    assert demos["terminations"].sum() == len(ends) - 1  # whole successful episodes, the last one cut
+    assert np.all(demos["rewards"][demos["terminations"]] == 1.0)
+
+
+def test_a_task_without_a_recorded_set_is_refused(tmp_path, monkeypatch):
+    manifest = json.loads(ASSETS.joinpath(MANIFEST).read_text())
+    del manifest["LavaBridgeNarrow-v0"]
+    (tmp_path / MANIFEST).write_text(json.dumps(manifest))
+    import lava_bridge_mj.demos as demos_module
+    monkeypatch.setattr(demos_module, "resources", types.SimpleNamespace(files=lambda package: tmp_path))
+    with pytest.raises(ValueError, match="records no 500-transition demo set for LavaBridgeNarrow-v0"):
+        load_demos(500, env_id="LavaBridgeNarrow-v0")
