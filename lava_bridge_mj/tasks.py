@@ -46,6 +46,10 @@ TASKS: dict[str, Layout] = {
     # and frame_skip doubles to keep 0.1 s per env step.
     "LavaBridgeLowDamping-v0": placed_layout(damping=0.5, timestep=0.005, frame_skip=20),
     "LavaBridgeFarStart-v0": placed_layout(room_length=8.0),
+    "LavaBridgeBend-v0": placed_layout(bridge_path=((-1.5, -0.8), (0.0, -0.8), (0.0, 0.8), (1.5, 0.8))),
+    "LavaBridgeTwoCrossings-v0": placed_layout(bridge_length=6.0, islands=((-1.0, 1.0),),
+                                               bridge_path=((-3.0, 1.2), (0.0, 1.2), (0.0, -1.2), (3.0, -1.2))),
+    "LavaBridgeDecoy-v0": placed_layout(decoys=((-0.25, 1.0, 1.25, 0.3),)),
 }
 """Every task's layout by gymnasium id, in suite order: LavaBridge-v0 first."""
 
@@ -60,6 +64,13 @@ TASK_DOCS: dict[str, str] = {
                                "must brake early and random actions carry it into lava from further away.",
     "LavaBridgeFarStart-v0": "8 m rooms: p0 lies 9 m from the bridge, a long approach without reward that "
                              "puts most demo states far from both lava and goal.",
+    "LavaBridgeBend-v0": "A Z-shaped bridge (1.5 m east at y = -0.8, 1.6 m north, 1.5 m east at y = 0.8): the "
+                         "ball must brake and turn twice on a 0.3 m bridge, where momentum carries it towards lava.",
+    "LavaBridgeTwoCrossings-v0": "Two 2 m crossings with a 2 m room between them, entered at opposite sides "
+                                 "(y = 1.2, then y = -1.2): two stretches where one bad action ends the episode, "
+                                 "and demo states in the middle room that are safe yet far from p0 and the goal.",
+    "LavaBridgeDecoy-v0": "Beside the bridge, a 0.6 m wide floor strip (y = 0.7 to 1.3) points straight at the goal "
+                          "and ends in lava 0.5 m short of the goal room: the direct way from p0 is a dead end.",
 }
 """What makes each task hard, in a sentence."""
 

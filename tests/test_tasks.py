@@ -18,6 +18,7 @@ import pytest
 
 import lava_bridge_mj
 from lava_bridge_mj import TASKS, Layout, LavaBridgeEnv, LavaBridgeVectorEnv, ScriptedExpert, load_demos, task_layout
+from lava_bridge_mj.layout import Box2D, _uncovered
 from lava_bridge_mj.demos import MANIFEST, SHIPPED_SEEDS, SHIPPED_SIZES, content_hash, demo_file, generate_demos
 from lava_bridge_mj.mjcf import VIEW_ASPECT
 from lava_bridge_mj.tasks import TASK_DOCS, placed_layout
@@ -143,3 +144,105 @@ def test_a_task_without_a_recorded_set_is_refused(tmp_path, monkeypatch):
     monkeypatch.setattr(demos_module, "resources", types.SimpleNamespace(files=lambda package: tmp_path))
     with pytest.raises(ValueError, match="records no 500-transition demo set for LavaBridgeNarrow-v0"):
         load_demos(500, env_id="LavaBridgeNarrow-v0")
+
+
+# --- layouts with other shapes: bent bridges, islands, decoys -------------------------------------------
+def floor_boxes(layout: Layout):
+    """Every floor rectangle over the strip between the rooms: bridge segments, decoys and islands."""
+    half_w = layout.room_width / 2
+    islands = [Box2D((w + e) / 2, 0.0, (e - w) / 2, half_w) for w, e in layout.islands]
+    return [*layout.bridge_segments, *layout.decoys, *islands]
+
+
+def inside(box, x, y):
+    return abs(x - box.x) < box.half_x and abs(y - box.y) < box.half_y
+
+
+@pytest.mark.parametrize("env_id", TASK_IDS)
+def test_lava_and_floor_tile_the_strip_between_the_rooms(env_id):
+    """Every point of the strip is lava or floor, never both; lava rectangles never overlap."""
+    layout = TASKS[env_id]
+    pits, floor = list(layout.lava_pits.values()), floor_boxes(layout)
+    rng = np.random.default_rng(0)
+    half_l, half_w = layout.bridge_length / 2, layout.room_width / 2
+    for x, y in rng.uniform([-half_l, -half_w], [half_l, half_w], (4000, 2)):
+        in_lava = sum(inside(pit, x, y) for pit in pits)
+        assert in_lava + any(inside(box, x, y) for box in floor) == 1, (x, y)
+    area = sum(4 * pit.half_x * pit.half_y for pit in pits)
+    uncovered = np.mean([not any(inside(box, x, y) for box in floor)
+                         for x, y in rng.uniform([-half_l, -half_w], [half_l, half_w], (20000, 2))])
+    assert area == pytest.approx(uncovered * 4 * half_l * half_w, rel=0.03)
+
+
+def test_general_lava_cutting_reproduces_the_straight_bridge_pits():
+    """The rectangle cutting used for other shapes gives LavaBridge-v0's two pits for its shape."""
+    layout = Layout()
+    cut = _uncovered((-1.5, 1.5), (-2.0, 2.0), layout.bridge_segments)
+    expected = sorted(layout.lava_pits.values())
+    assert len(cut) == 2
+    for box, pit in zip(sorted(cut), expected):
+        assert box == pytest.approx(pit)
+
+
+def test_the_bend_is_floor_and_its_inside_corner_is_lava():
+    env = LavaBridgeEnv(layout=TASKS["LavaBridgeBend-v0"])
+    for state in ([-1.0, -0.8, 0.0, 0.0], [0.0, -0.8, 0.0, 0.0], [0.0, 0.0, 0.0, 0.4], [0.1, 0.85, 0.0, 0.0],
+                  [1.5, 0.8, 0.3, 0.0]):
+        assert np.array_equal(env.reset(options={"state": state})[0], state)
+    for position in ([-0.5, 0.0], [0.5, -0.8], [-1.0, -0.6], [0.0, 1.0], [-1.4, 0.8]):
+        with pytest.raises(ValueError, match="touches lava"):
+            env.reset(options={"qpos": position})
+    # heading north up the middle segment without turning: lava at the far corner's outer edge
+    env.reset(options={"state": [0.0, 0.5, 0.0, 1.0]})
+    for _ in range(20):
+        obs, reward, terminated, _, info = env.step([0.0, 0.5])
+        if terminated:
+            break
+    assert info["lava"] and abs(obs[1] - 0.95) <= 0.05
+
+
+def test_a_decoy_is_floor_that_ends_in_lava():
+    env = LavaBridgeEnv(layout=TASKS["LavaBridgeDecoy-v0"])
+    env.reset(options={"state": [-1.4, 1.0, 0.0, 0.0]})  # on the decoy, at its start
+    for _ in range(60):
+        obs, _, terminated, _, info = env.step([1.0, 0.0])
+        if terminated:
+            break
+    assert info["lava"] and 0.95 <= obs[0] <= 1.0  # at its east end, 0.5 m short of the goal room
+
+
+@pytest.mark.parametrize("fields, message", [
+    ({"bridge_path": ((-1.5, 0.0), (1.5, 0.3))}, "must run eastwards along x or along y"),
+    ({"bridge_path": ((-1.5, 0.0), (0.5, 0.0), (0.0, 0.0), (1.5, 0.0))}, "must run eastwards"),
+    ({"bridge_path": ((-1.0, 0.0), (1.5, 0.0))}, "must run from x = -1.5 to x = 1.5"),
+    ({"bridge_path": ((-1.5, 0.0),)}, "must run from x = -1.5"),
+    ({"bridge_path": ((-1.5, 1.9), (1.5, 1.9))}, "past the walls"),
+    ({"bridge_path": ((-1.5, 0.0), (-1.5, 1.0), (1.5, 1.0))}, "along y must lie inside an island"),
+    ({"bridge_path": ((-1.5, 0.0), (0.0, 0.0), (0.0, 1.0))}, "must run from x = -1.5 to x = 1.5"),
+    ({"bridge_path": ((-1.5, 0.0), (1.5, 0.0), (1.5, 1.0))}, "Layout.bridge_path"),
+    ({"bridge_path": "abc"}, "Layout.bridge_path must be a sequence of finite"),
+    ({"bridge_path": ((0.0, float("nan")),)}, "Layout.bridge_path must be a sequence of finite"),
+    ({"islands": ((-2.0, 0.0),)}, r"Layout.islands: \(-2, 0\) must lie strictly inside the strip"),
+    ({"islands": ((-1.0, 0.0), (-0.5, 0.5))}, "clear of the other islands"),
+    ({"islands": ((0.5, -0.5),)}, "Layout.islands"),
+    ({"islands": ((1.0,),)}, "Layout.islands must be a sequence of finite"),
+    ({"decoys": ((0.0, 1.0, 2.0, 0.3),)}, "Layout.decoys"),
+    ({"decoys": ((0.0, 1.0, 0.5, -0.3),)}, "Layout.decoys"),
+    ({"decoys": ((0.0, 1.0, 0.5),)}, "Layout.decoys must be a sequence of finite"),
+])
+def test_bad_shapes_are_refused_naming_the_field(fields, message):
+    with pytest.raises(ValueError, match=message):
+        Layout(**fields)
+    with pytest.raises(ValueError, match=message):
+        gymnasium.make("LavaBridge-v0", **fields)
+
+
+def test_shapes_given_as_json_lists_make_the_same_layout():
+    """A run's config.json holds plain lists; they build the task's layout exactly."""
+    layout = TASKS["LavaBridgeTwoCrossings-v0"]
+    fields = json.loads(json.dumps({name: getattr(layout, name) for name in ("bridge_path", "islands", "decoys")}))
+    rebuilt = placed_layout(bridge_length=layout.bridge_length, **fields)
+    assert rebuilt == layout and hash(rebuilt) == hash(layout)
+    decoy = TASKS["LavaBridgeDecoy-v0"]
+    assert Layout(decoys=json.loads(json.dumps(decoy.decoys))).decoys == decoy.decoys
+    assert isinstance(decoy.decoys[0], Box2D)
