@@ -92,8 +92,11 @@ def build_mjcf(layout: Layout) -> str:
     hx, hy = layout.half_extent
     world = root.worldbody
     world.add("light", name="top", pos=(0, 0, 8), dir=(0, 0, -1), directional=True)
-    world.add("camera", name="top", pos=(0, 0, 10), projection="orthographic", fovy=top_camera_fovy(layout))
-    world.add("geom", name="floor", type="plane", pos=(0, 0, FLOOR_Z), size=(hx + 1, hy + 1, 0.1),
+    fovy = top_camera_fovy(layout)
+    world.add("camera", name="top", pos=(0, 0, 10), projection="orthographic", fovy=fovy)
+    # the floor reaches 1 m past the walls, and fills the top camera's view of a long maze
+    world.add("geom", name="floor", type="plane", pos=(0, 0, FLOOR_Z),
+              size=(max(hx + 1, fovy * VIEW_ASPECT / 2), max(hy + 1, fovy / 2), 0.1),
               material="floor", contype=0, conaffinity=0)
     for name, box in layout.walls.items():
         world.add("geom", name=name, type="box", material="wall",

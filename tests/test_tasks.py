@@ -12,16 +12,19 @@ import types
 from importlib import resources
 
 import gymnasium
+import imageio.v2 as imageio
 import mujoco
 import numpy as np
 import pytest
 
 import lava_bridge_mj
-from lava_bridge_mj import TASKS, Layout, LavaBridgeEnv, LavaBridgeVectorEnv, ScriptedExpert, load_demos, task_layout
-from lava_bridge_mj.layout import Box2D, _uncovered
+from lava_bridge_mj import (TASKS, Layout, LavaBridgeEnv, LavaBridgeVectorEnv, ScriptedExpert, load_demos, pictures,
+                            task_layout)
 from lava_bridge_mj.demos import MANIFEST, SHIPPED_SEEDS, SHIPPED_SIZES, content_hash, demo_file, generate_demos
+from lava_bridge_mj.layout import Box2D, _uncovered
 from lava_bridge_mj.mjcf import VIEW_ASPECT
 from lava_bridge_mj.tasks import TASK_DOCS, placed_layout
+from test_env import needs_gl
 
 TASK_IDS = list(TASKS)
 NEW_TASK_IDS = TASK_IDS[1:]
@@ -246,3 +249,51 @@ def test_shapes_given_as_json_lists_make_the_same_layout():
     decoy = TASKS["LavaBridgeDecoy-v0"]
     assert Layout(decoys=json.loads(json.dumps(decoy.decoys))).decoys == decoy.decoys
     assert isinstance(decoy.decoys[0], Box2D)
+
+
+@needs_gl
+@pytest.mark.parametrize("env_id", TASK_IDS)
+def test_rendering_shows_each_task_as_its_layout_says(env_id):
+    """From the top camera: lava red at every pit's centre, floor along the bridge's centre line and in
+    the frame's corners, the goal green."""
+    env = gymnasium.make(env_id, render_mode="rgb_array", width=480, height=200)
+    try:
+        base = env.unwrapped
+        layout = base.layout
+        env.reset(seed=0)  # the ball in a p0 blob, clear of everything checked below
+        rgb = env.render().astype(int)
+        camera = mujoco.mj_name2id(base.model, mujoco.mjtObj.mjOBJ_CAMERA, "top")
+        scale = base.height / base.model.cam_fovy[camera]  # orthographic, centred on the origin
+
+        def pixel(x, y):
+            return rgb[int(round(base.height / 2 - y * scale)), int(round(base.width / 2 + x * scale))]
+
+        for pit in layout.lava_pits.values():
+            r, g, b = pixel(pit.x, pit.y)
+            assert r > 150 and r > 2 * g and r > 2 * b, (env_id, pit, (r, g, b))
+        for crossing in layout.crossings:
+            for (x0, y0), (x1, y1) in zip(crossing, crossing[1:]):
+                r, g, b = pixel((x0 + x1) / 2, (y0 + y1) / 2)
+                assert abs(r - g) < 30 and r > 150, (env_id, (x0, y0, x1, y1), (r, g, b))
+        r, g, b = pixel(*layout.goal)
+        assert g > 150 and g > r + 50 and g > b + 50, (env_id, (r, g, b))
+        for corner in (rgb[0, 0], rgb[0, -1], rgb[-1, 0], rgb[-1, -1]):  # the floor fills the view
+            assert corner.min() > 100, (env_id, corner)
+    finally:
+        env.close()
+
+
+@needs_gl
+def test_the_task_picture_shows_every_task(tmp_path):
+    out = tmp_path / "tasks.png"
+    assert pictures.main(["--out", str(out), "--width", "240", "--height", "100"]) == 0
+    image = imageio.imread(out)
+    assert image.ndim == 3 and image.shape[0] > 4 * 100 and image.shape[1] > 2 * 240  # 2 columns, 4+ rows
+    assert not list(tmp_path.glob("*.tmp.png"))
+
+
+def test_the_task_picture_refuses_a_non_png_path(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        pictures.main(["--out", str(tmp_path / "tasks.jpg")])
+    assert exit_info.value.code == 2 and "must name a .png file" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
