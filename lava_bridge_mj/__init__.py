@@ -42,5 +42,6 @@ def register_envs() -> None:
 
 register_envs()
 
-__all__ = ["ENV_ID", "MAX_EPISODE_STEPS", "TASKS", "TASK_DOCS", "Disc", "Layout", "LavaBridgeEnv", "LavaBridgeVectorEnv",
-           "START_NAMES", "ScriptedExpert", "load_demos", "register_envs", "start_distribution", "task_layout"]
+__all__ = ["ENV_ID", "MAX_EPISODE_STEPS", "TASKS", "TASK_DOCS", "Disc", "Layout", "LavaBridgeEnv",
+           "LavaBridgeVectorEnv", "START_NAMES", "ScriptedExpert", "load_demos", "register_envs", "start_distribution",
+           "task_layout"]

@@ -101,8 +101,9 @@ class Task:
         self.strip_end = layout.bridge_length / 2  # the lava strip's end faces, at |x| = strip_end
         self.high = np.array([self.hx, self.hy, self.top_speed, self.top_speed])
         # Created once: every example starts with a reset, and the env's state is all in (qpos, qvel).
-        self.env = LavaBridgeEnv(layout=layout, lava_reward=-1.0)  # a lava reward unlike the step reward: the reward itself names the event
-        self.twin = LavaBridgeEnv(layout=layout, lava_reward=-1.0)  # an identical second env: replays must give the same bits
+        # A lava reward unlike the step reward: the reward itself names the event.
+        self.env = LavaBridgeEnv(layout=layout, lava_reward=-1.0)
+        self.twin = LavaBridgeEnv(layout=layout, lava_reward=-1.0)  # identical: replays must give the same bits
         self.shadow = mujoco.MjData(self.env.model)  # replays env steps physics step by physics step
         self.positions = self._positions()
         self.velocities = st.tuples(floats(-self.top_speed, self.top_speed), floats(-self.top_speed, self.top_speed))
@@ -520,7 +521,8 @@ def test_success_exactly_when_the_centre_reaches_the_goal(env_id):
             else:
                 assert distance >= t.goal_radius - EDGE_TOL, step  # reaching the goal never goes unnoticed
             states = physics_steps(t, step.before, step.action)
-            first_in = next((k for k, s in enumerate(states) if t.goal_distance(*s[:2]) < t.goal_radius - EDGE_TOL), None)
+            first_in = next((k for k, s in enumerate(states)
+                             if t.goal_distance(*s[:2]) < t.goal_radius - EDGE_TOL), None)
             if first_in is not None:
                 assert step.terminated, (first_in, states[first_in], step)
             if info["is_success"]:
