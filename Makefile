@@ -8,7 +8,7 @@ STAMP := $(VENV)/.installed
 MESA_PACKAGES := libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 libosmesa6
 export MUJOCO_GL ?= egl
 
-.PHONY: run expert-video test bench report setup gl clean
+.PHONY: run expert-video task-pictures test bench report setup gl clean
 
 # The main job: AuxSS on 5 seeds trained together (about 15 min on 2 cores), then a summary table.
 # --resume makes it safe to run again: a finished batch is left as it is, an interrupted one continues.
@@ -18,6 +18,10 @@ run: setup
 
 expert-video: setup
 	$(BIN)/python -m lava_bridge_mj.eval.video --expert --out runs/expert.mp4
+
+# docs/tasks.png: every task of the suite from its top camera, with the expert's paths
+task-pictures: setup
+	$(BIN)/python -m lava_bridge_mj.pictures --out docs/tasks.png
 
 test: setup
 	$(BIN)/python -m pytest

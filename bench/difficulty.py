@@ -1,23 +1,36 @@
-"""How hard LavaBridge-v0 is, in the paper's sense: the figures the README records.
+"""How hard each Lava Bridge task is, in the paper's sense: the figures the README's tables record.
 
-- a uniformly random policy from p0: success rate and fraction of episodes that end in lava;
-- the scripted expert from p0 and from ood: success rate and episode length;
-- the shipped demo states: the distribution of the random policy's 4-step lava probability
-  (1 - Omega(s), the safety signal Omega-SS and AuxSS rely on), and the fraction on the bridge.
+Per task (`--env ID`, or every task of `lava_bridge_mj.TASKS` by default):
+- a uniformly random policy from p0: success rate (must stay below 1%) and how episodes end;
+- the scripted expert from p0 and from ood: success rate and mean episode length;
+- the task's shipped demo states: the random policy's 4-step lava probability (1 - Omega(s), the
+  safety signal Omega-SS and AuxSS rely on), its histogram, and the share of states where it is >= 0.1;
+- Omega-SS's max/min sampling ratio over the 150 candidate states a run of each seed in
+  `--candidate-seeds` draws (the runner's draw and Omega-SS's own defaults: 32 rollouts of 4 steps,
+  seeded with the run's seed, omega floored at 0.05): near 1, Omega-SS is uniform sampling.
 
-Usage: python bench/difficulty.py [--random-episodes 1000] [--expert-episodes 200] [--rollouts 64]
+Usage: python bench/difficulty.py [--env ID] [--random-episodes 1000] [--expert-episodes 200]
+       [--rollouts 64] [--candidate-seeds 0-4] [--out results/suite/difficulty.md]
 """
 
 from __future__ import annotations
 
 import argparse
+import shlex
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import gymnasium
 import numpy as np
 
 import lava_bridge_mj
-from lava_bridge_mj.agents.start_strategies import estimate_random_policy_safety
+from lava_bridge_mj.agents.start_strategies import OmegaSS, estimate_random_policy_safety
+
+CANDIDATES = 150
+"""The runner's default candidate subset (RunConfig.demo_subset)."""
+LAVA_PROBABILITY_EDGES = [0, 0.01, 0.1, 0.2, 0.3, 0.5, 1.0001]
 
 
 def run_episodes(env, policy, episodes: int, start: str, seed: int) -> dict:
@@ -36,45 +49,150 @@ def run_episodes(env, policy, episodes: int, start: str, seed: int) -> dict:
     return {key: value / episodes for key, value in outcomes.items()} | {"mean_length": float(np.mean(lengths))}
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--random-episodes", type=int, default=1000)
-    parser.add_argument("--expert-episodes", type=int, default=200)
-    parser.add_argument("--rollouts", type=int, default=64, help="random rollouts per demo state")
-    parser.add_argument("--demos", type=int, default=500, choices=(500, 7500))
-    args = parser.parse_args()
+def candidate_states(states: np.ndarray, seed: int) -> np.ndarray:
+    """The candidate start states a run of `seed` draws from the demo states (eval/runner.py's draw)."""
+    rng = np.random.default_rng([seed, 2024])
+    return states[np.sort(rng.choice(len(states), size=min(CANDIDATES, len(states)), replace=False))]
 
-    env = gymnasium.make(lava_bridge_mj.ENV_ID)
+
+def omega_ss_ratio(env, states: np.ndarray, seed: int) -> float:
+    """Omega-SS's largest over smallest sampling probability on a run's candidates (its defaults)."""
+    weights = OmegaSS.from_env(candidate_states(states, seed), env, seed=seed).weights
+    return float(weights.max() / weights.min())
+
+
+def measure(env_id: str, args: argparse.Namespace) -> dict:
+    """Print one task's figures and return the ones the table shows."""
+    env = gymnasium.make(env_id)
+    layout = env.unwrapped.layout
     rng = np.random.default_rng(0)
     random_policy = lambda obs: rng.uniform(-1, 1, 2).astype(np.float32)  # noqa: E731
     expert = lava_bridge_mj.ScriptedExpert(env)
-    start = time.perf_counter()
+    print(f"== {env_id}: {lava_bridge_mj.TASK_DOCS[env_id]}")
     r = run_episodes(env, random_policy, args.random_episodes, "p0", seed=0)
     print(f"random policy from p0 ({args.random_episodes} episodes): success {r['success']:.2%}, "
           f"lava {r['lava']:.2%}, timed out {r['truncated']:.2%}, mean length {r['mean_length']:.0f}")
+    row = {"task": env_id, "random": r}
     for start_name in ("p0", "ood"):
         e = run_episodes(env, expert.act, args.expert_episodes, start_name, seed=10_000)
         print(f"expert from {start_name} ({args.expert_episodes} episodes): success {e['success']:.2%}, "
               f"lava {e['lava']:.2%}, mean length {e['mean_length']:.0f}")
+        row[f"expert_{start_name}"] = e
 
-    states = lava_bridge_mj.load_demos(args.demos)["observations"]
+    states = lava_bridge_mj.load_demos(args.demos, env_id=env_id)["observations"]
     omega = estimate_random_policy_safety(env, states, k=4, rollouts=args.rollouts, seed=0)
     lava_probability = 1 - omega
-    on_bridge = np.abs(states[:, 0]) <= env.unwrapped.layout.bridge_length / 2
-    edges = [0, 0.01, 0.1, 0.2, 0.3, 0.5, 1.0001]
-    counts, _ = np.histogram(lava_probability, bins=edges)
+    bridge = layout.bridge
+    on_bridge = np.abs(states[:, 0] - bridge.x) <= bridge.half_x
+    counts, _ = np.histogram(lava_probability, bins=LAVA_PROBABILITY_EDGES)
+    row["unsafe"] = float(np.mean(lava_probability >= 0.1))
     print(f"demo states ({len(states)}, demos {args.demos}): on the bridge {on_bridge.mean():.1%}; "
-          f"4-step random lava probability >= 0.1: {np.mean(lava_probability >= 0.1):.1%} "
+          f"4-step random lava probability >= 0.1: {row['unsafe']:.1%} "
           f"(on the bridge: {np.mean(lava_probability[on_bridge] >= 0.1):.1%}, "
           f"off it: {np.mean(lava_probability[~on_bridge] >= 0.1):.1%})")
     print("  lava probability histogram:")
+    edges = LAVA_PROBABILITY_EDGES
     for lo, hi, count in zip(edges[:-1], edges[1:], counts):
         print(f"    [{lo:.2f}, {min(hi, 1):.2f}{']' if hi > 1 else ')'}: {count}")
     unsafe_x = states[lava_probability >= 0.1, 0]
     if len(unsafe_x):
         print(f"  states with lava probability >= 0.1 lie at x in [{unsafe_x.min():.2f}, {unsafe_x.max():.2f}] "
-              f"(bridge: [-{env.unwrapped.layout.bridge_length / 2}, {env.unwrapped.layout.bridge_length / 2}])")
+              f"(bridge: [{bridge.x - bridge.half_x:g}, {bridge.x + bridge.half_x:g}])")
+    ratios = [omega_ss_ratio(env.unwrapped, states, seed) for seed in args.candidate_seeds]
+    row["omega_ratios"] = ratios
+    print(f"Omega-SS max/min sampling ratio, seeds {format_seeds(args.candidate_seeds)}: "
+          + ", ".join(f"{ratio:.1f}" for ratio in ratios))
+    env.close()
+    return row
+
+
+def format_seeds(seeds: list[int]) -> str:
+    contiguous = seeds == list(range(seeds[0], seeds[-1] + 1))
+    return f"{seeds[0]}-{seeds[-1]}" if contiguous and len(seeds) > 1 else ",".join(map(str, seeds))
+
+
+def table(rows: list[dict], args: argparse.Namespace) -> str:
+    seeds = format_seeds(args.candidate_seeds)
+    lines = [
+        f"| task | random policy from p0: success (lava / timeout) | expert success p0 / ood | expert mean "
+        f"length p0 / ood (steps) | demo states with 4-step lava probability >= 0.1 | Omega-SS max/min "
+        f"sampling ratio, median [range] over seeds {seeds} |",
+        "|---|---|---|---|---|---|",
+    ]
+    for row in rows:
+        r, p0, ood = row["random"], row["expert_p0"], row["expert_ood"]
+        ratios = row["omega_ratios"]
+        lines.append(
+            f"| `{row['task']}` | {r['success']:.2%} ({r['lava']:.1%} / {r['truncated']:.1%}) "
+            f"| {p0['success']:.0%} / {ood['success']:.0%} | {p0['mean_length']:.0f} / {ood['mean_length']:.0f} "
+            f"| {row['unsafe']:.1%} | {np.median(ratios):.1f} [{min(ratios):.1f}, {max(ratios):.1f}] |")
+    return "\n".join(lines)
+
+
+def code_version() -> str:
+    """The checkout's commit, marked dirty when tracked files differ from it ('unknown' outside git)."""
+    root = Path(__file__).resolve().parent.parent
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True,
+                                text=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
+                               capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return commit + (" (with uncommitted changes)" if dirty else "")
+
+
+def parse_seeds(text: str) -> list[int]:
+    """'0-4' or '0,3,5-7' -> sorted seeds; argparse turns the ValueError into a usage error."""
+    seeds = set()
+    for part in text.split(","):
+        low, _, high = part.partition("-")
+        if not (low.isdigit() and (not high or high.isdigit())) or (high and int(high) < int(low)):
+            raise ValueError(text)
+        seeds.update(range(int(low), int(high or low) + 1))
+    return sorted(seeds)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--env", action="append", metavar="ID",
+                        help=f"a task to measure (repeatable); default: all of {', '.join(lava_bridge_mj.TASKS)}")
+    parser.add_argument("--random-episodes", type=int, default=1000)
+    parser.add_argument("--expert-episodes", type=int, default=200)
+    parser.add_argument("--rollouts", type=int, default=64, help="random rollouts per demo state")
+    parser.add_argument("--demos", type=int, default=500, choices=(500, 7500))
+    parser.add_argument("--candidate-seeds", type=parse_seeds, default="0-4", metavar="SEEDS",
+                        help="run seeds whose candidate states give Omega-SS's sampling ratio (default 0-4)")
+    parser.add_argument("--out", type=Path, help="also write the table, with the command and commit, to this file")
+    args = parser.parse_args(argv)
+    env_ids = args.env or list(lava_bridge_mj.TASKS)
+    for env_id in env_ids:
+        if env_id not in lava_bridge_mj.TASKS:
+            parser.error(f"--env {env_id!r} is not a task; expected one of {', '.join(lava_bridge_mj.TASKS)}")
+    for name in ("random_episodes", "expert_episodes", "rollouts"):
+        if getattr(args, name) < 1:
+            parser.error(f"--{name.replace('_', '-')} must be at least 1, got {getattr(args, name)}")
+    version = code_version()  # before the run: what the figures came from
+
+    start = time.perf_counter()
+    rows = [measure(env_id, args) for env_id in env_ids]
+    text = table(rows, args)
+    print()
+    print(text)
     print(f"({time.perf_counter() - start:.0f} s)")
+    if args.out:
+        command = shlex.join(["python", "bench/difficulty.py", *(sys.argv[1:] if argv is None else argv)])
+        header = (f"# Difficulty of the Lava Bridge tasks\n\n`{command}` at commit {version}, "
+                  f"{time.perf_counter() - start:.0f} s.\n\n"
+                  f"Random policy: {args.random_episodes} episodes from p0; expert: {args.expert_episodes} episodes "
+                  f"from p0 and from ood; lava probability: {args.rollouts} random 4-step rollouts per state of "
+                  f"each task's {args.demos}-transition demo set; Omega-SS: its default 32 rollouts per candidate "
+                  f"state, the {CANDIDATES} candidates of each seed's run.\n\n")
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = args.out.with_name(args.out.name + ".tmp")
+        tmp.write_text(header + text + "\n")
+        tmp.replace(args.out)
+        print(f"wrote {args.out}")
 
 
 if __name__ == "__main__":

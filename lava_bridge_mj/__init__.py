@@ -1,7 +1,8 @@
 """LavaBridge-v0: a MuJoCo hard-exploration benchmark for RL from auxiliary start state distributions.
 
-Importing the package registers `LavaBridge-v0` with gymnasium. Without importing it first,
-`gymnasium.make("lava_bridge_mj:LavaBridge-v0")` imports and registers it in one go.
+Importing the package registers `LavaBridge-v0` and the other tasks of the suite (`TASKS`) with
+gymnasium. Without importing it first, `gymnasium.make("lava_bridge_mj:LavaBridge-v0")` imports and
+registers them in one go.
 """
 
 import os
@@ -17,20 +18,30 @@ from lava_bridge_mj.expert import ScriptedExpert  # noqa: E402
 from lava_bridge_mj.layout import Disc, Layout  # noqa: E402
 from lava_bridge_mj.lava_bridge import MAX_EPISODE_STEPS, LavaBridgeEnv  # noqa: E402
 from lava_bridge_mj.starts import START_NAMES, start_distribution  # noqa: E402
+from lava_bridge_mj.tasks import DEFAULT_ENV_ID, TASK_DOCS, TASKS, task_layout  # noqa: E402
 from lava_bridge_mj.vector import LavaBridgeVectorEnv  # noqa: E402
 
-ENV_ID = "LavaBridge-v0"
+ENV_ID = DEFAULT_ENV_ID
 
 
 def register_envs() -> None:
-    """Register LavaBridge-v0 (idempotent), with its native vector env for `gymnasium.make_vec`."""
-    if ENV_ID not in gymnasium.registry:
-        gymnasium.register(ENV_ID, entry_point="lava_bridge_mj.lava_bridge:LavaBridgeEnv",
+    """Register every task of `TASKS` (idempotent), with its native vector env for `gymnasium.make_vec`.
+
+    LavaBridge-v0 is the default `Layout()` and registers without keyword arguments, as it always
+    has; every other task passes `layout=` its Layout (keyword arguments given to `gymnasium.make`
+    still override single fields of it, e.g. `gymnasium.make("LavaBridgeNarrow-v0", damping=2.0)`).
+    """
+    for env_id, layout in TASKS.items():
+        if env_id in gymnasium.registry:
+            continue
+        gymnasium.register(env_id, entry_point="lava_bridge_mj.lava_bridge:LavaBridgeEnv",
                            vector_entry_point="lava_bridge_mj.vector:LavaBridgeVectorEnv",
-                           max_episode_steps=MAX_EPISODE_STEPS)
+                           max_episode_steps=MAX_EPISODE_STEPS,
+                           kwargs={} if env_id == ENV_ID else {"layout": layout})
 
 
 register_envs()
 
-__all__ = ["ENV_ID", "MAX_EPISODE_STEPS", "Disc", "Layout", "LavaBridgeEnv", "LavaBridgeVectorEnv", "START_NAMES",
-           "ScriptedExpert", "load_demos", "register_envs", "start_distribution"]
+__all__ = ["ENV_ID", "MAX_EPISODE_STEPS", "TASKS", "TASK_DOCS", "Disc", "Layout", "LavaBridgeEnv",
+           "LavaBridgeVectorEnv", "START_NAMES", "ScriptedExpert", "load_demos", "register_envs", "start_distribution",
+           "task_layout"]

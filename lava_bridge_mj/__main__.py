@@ -1,7 +1,7 @@
 """Maintenance commands for the shipped assets.
 
     python -m lava_bridge_mj model [--check]   rewrite (or check) assets/lava_bridge.xml from Layout()
-    python -m lava_bridge_mj demos [--check]   regenerate (or check bit for bit) the shipped demo sets
+    python -m lava_bridge_mj demos [--check]   regenerate (or check bit for bit) every task's shipped demo sets
 """
 
 import argparse

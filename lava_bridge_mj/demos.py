@@ -1,9 +1,11 @@
 """Expert demonstration sets: generate them from a seed, ship them, load them with integrity checks.
 
-The shipped sets (`assets/demos_500.npz`, `assets/demos_7500.npz`) are whole expert episodes from p0,
-concatenated until the size is reached; the last episode is cut there and marked truncated. The 500
-set is 3 trajectories, as in the paper. `assets/demos.json` records each set's seed and a SHA-256 of
-its arrays; `python -m lava_bridge_mj demos --check` regenerates both and compares them bit for bit.
+Every task of the suite (`lava_bridge_mj.TASKS`) ships two sets, 500 and 7,500 transitions: whole
+scripted-expert episodes from p0, concatenated until the size is reached; the last episode is cut
+there and marked truncated. LavaBridge-v0's are `assets/demos_500.npz` and `assets/demos_7500.npz`
+(its 500 set is 3 trajectories, as in the paper), another task's `assets/demos_<env id>_<size>.npz`.
+`assets/demos.json` records, per task and size, the file, seed, episode count and a SHA-256 of the
+arrays; `python -m lava_bridge_mj demos --check` regenerates every set and compares them bit for bit.
 """
 
 from __future__ import annotations
@@ -17,10 +19,17 @@ import numpy as np
 
 from lava_bridge_mj.expert import ScriptedExpert
 from lava_bridge_mj.lava_bridge import MAX_EPISODE_STEPS, LavaBridgeEnv
+from lava_bridge_mj.tasks import DEFAULT_ENV_ID, TASKS, task_layout
 
 SHIPPED_SIZES = (500, 7500)
 SHIPPED_SEEDS = {500: 0, 7500: 1}
 MANIFEST = "demos.json"
+
+
+def demo_file(env_id: str, size: int) -> str:
+    """The asset file name of a task's shipped set (LavaBridge-v0 keeps its original names)."""
+    return f"demos_{size}.npz" if env_id == DEFAULT_ENV_ID else f"demos_{env_id}_{size}.npz"
+
 FIELDS = {  # name: (dtype, per-transition shape)
     "observations": (np.float64, (4,)),
     "actions": (np.float32, (2,)),
@@ -91,18 +100,24 @@ def check_demos(demos: dict[str, np.ndarray], source: str) -> None:
             raise ValueError(f"demo file {source}: field {name!r} has non-finite values")
 
 
-def load_demos(size: int = 500, path: str | Path | None = None) -> dict[str, np.ndarray]:
-    """A shipped demo set by size (500 or 7500), or a file written by `save_demos` at `path`.
+def load_demos(size: int = 500, path: str | Path | None = None, env_id: str = DEFAULT_ENV_ID) -> dict[str, np.ndarray]:
+    """A task's shipped demo set by size (500 or 7500), or a file written by `save_demos` at `path`.
 
-    Returns a dict of arrays: observations, actions, rewards, next_observations, terminations,
-    truncations, episode_ids. Shipped sets are checked against their recorded SHA-256.
+    `env_id` names the task (`lava_bridge_mj.TASKS`; LavaBridge-v0 by default); it is ignored with
+    `path`. Returns a dict of arrays: observations, actions, rewards, next_observations,
+    terminations, truncations, episode_ids. Shipped sets are checked against their recorded SHA-256.
     """
     if path is None:
+        task_layout(env_id)  # ValueError naming an unknown task
         if size not in SHIPPED_SIZES:
             raise ValueError(f"no shipped demo set of size {size!r}; expected one of {SHIPPED_SIZES}")
         assets = resources.files("lava_bridge_mj.assets")
-        source = assets.joinpath(f"demos_{size}.npz")
-        expected = json.loads(assets.joinpath(MANIFEST).read_text())[str(size)]["sha256"]
+        source = assets.joinpath(demo_file(env_id, size))
+        recorded = json.loads(assets.joinpath(MANIFEST).read_text()).get(env_id, {}).get(str(size))
+        if recorded is None:
+            raise ValueError(f"{MANIFEST} records no {size}-transition demo set for {env_id}; "
+                             "regenerate the sets with `python -m lava_bridge_mj demos`")
+        expected = recorded["sha256"]
     else:
         source, expected = Path(path), None
     try:
@@ -125,24 +140,32 @@ def load_demos(size: int = 500, path: str | Path | None = None) -> dict[str, np.
 
 
 def regenerate_demos(check: bool = False) -> bool:
-    """Regenerate the shipped sets from their seeds: write them, or with `check` only compare.
+    """Regenerate every task's shipped sets from their seeds: write them, or with `check` only compare.
 
     Returns True when (checking) every shipped set is bit-identical to its regeneration.
     """
     assets = Path(str(resources.files("lava_bridge_mj.assets")))
     manifest, identical = {}, True
-    for size in SHIPPED_SIZES:
-        demos = generate_demos(size, SHIPPED_SEEDS[size])
-        digest = content_hash(demos)
-        episodes = int(demos["episode_ids"][-1]) + 1
-        manifest[str(size)] = {"seed": SHIPPED_SEEDS[size], "episodes": episodes, "sha256": digest}
-        if check:
-            same = content_hash(load_demos(size)) == digest
-            identical &= same
-            print(f"demos_{size}: {'identical' if same else 'DIFFERENT'} ({episodes} episodes)")
-        else:
-            save_demos(demos, assets / f"demos_{size}.npz")
-            print(f"wrote demos_{size}.npz: {episodes} episodes, sha256 {digest[:12]}")
+    for env_id, layout in TASKS.items():
+        manifest[env_id] = {}
+        for size in SHIPPED_SIZES:
+            demos = generate_demos(size, SHIPPED_SEEDS[size], LavaBridgeEnv(layout=layout))
+            digest = content_hash(demos)
+            episodes = int(demos["episode_ids"][-1]) + 1
+            name = demo_file(env_id, size)
+            manifest[env_id][str(size)] = {"file": name, "seed": SHIPPED_SEEDS[size], "episodes": episodes,
+                                           "sha256": digest}
+            if check:
+                try:
+                    same = content_hash(load_demos(size, env_id=env_id)) == digest
+                except ValueError as error:  # missing, unreadable or not matching its recorded hash
+                    print(f"{name}: {error}")
+                    same = False
+                identical &= same
+                print(f"{name}: {'identical' if same else 'DIFFERENT'} ({episodes} episodes)")
+            else:
+                save_demos(demos, assets / name)
+                print(f"wrote {name}: {episodes} episodes, sha256 {digest[:12]}")
     if not check:
         (assets / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
     return identical

@@ -32,6 +32,8 @@ class LavaBridgeEnv(gymnasium.Env):
     entropy-driven explorer almost never crosses; a controller that slows down and lines up does.
     The task reproduces "Lava Bridge" from Mehra, Capone and Schneider (2024), *Accelerated Online
     Reinforcement Learning using Auxiliary Start State Distributions*.
+    The other tasks of the suite (`lava_bridge_mj.TASKS`: a longer, narrower or bent bridge, two
+    crossings, a decoy, low damping, a far start) are this env with another `layout`.
 
     ## Action Space
     `Box(-1, 1, (2,), float32)`: the force on the ball along x and y, in units of `gear` newtons.

@@ -38,6 +38,17 @@ LAVA_DEPTH = 0.005
 PAD_THICKNESS = 0.001
 FLOOR_Z = -0.02
 WALL_HEIGHT = 0.2
+VIEW_ASPECT = 960 / 400
+"""Width / height of the env's default frame: the top camera's view is sized for it."""
+
+
+def top_camera_fovy(layout: Layout) -> float:
+    """Height (m) of the orthographic top camera's view: the maze with its walls and 0.2 m to spare
+    above and below, made taller where a long maze would otherwise overflow a default-sized frame's
+    width (then 0.05 m spare at each end). The default maze fits by height alone."""
+    hx, hy = layout.half_extent
+    t = layout.wall_thickness
+    return max(2 * hy + 2 * t + 0.4, (2 * hx + 2 * t + 0.1) / VIEW_ASPECT)
 
 
 def pad_gap(layout: Layout) -> float:
@@ -81,9 +92,11 @@ def build_mjcf(layout: Layout) -> str:
     hx, hy = layout.half_extent
     world = root.worldbody
     world.add("light", name="top", pos=(0, 0, 8), dir=(0, 0, -1), directional=True)
-    world.add("camera", name="top", pos=(0, 0, 10), projection="orthographic",
-              fovy=2 * hy + 2 * layout.wall_thickness + 0.4)
-    world.add("geom", name="floor", type="plane", pos=(0, 0, FLOOR_Z), size=(hx + 1, hy + 1, 0.1),
+    fovy = top_camera_fovy(layout)
+    world.add("camera", name="top", pos=(0, 0, 10), projection="orthographic", fovy=fovy)
+    # the floor reaches 1 m past the walls, and fills the top camera's view of a long maze
+    world.add("geom", name="floor", type="plane", pos=(0, 0, FLOOR_Z),
+              size=(max(hx + 1, fovy * VIEW_ASPECT / 2), max(hy + 1, fovy / 2), 0.1),
               material="floor", contype=0, conaffinity=0)
     for name, box in layout.walls.items():
         world.add("geom", name=name, type="box", material="wall",

@@ -76,11 +76,20 @@ def test_shipped_500_set_is_three_episodes(demos500):
 
 
 def test_shipped_7500_set_size_matches_its_manifest(demos7500):
-    manifest = json.loads(ASSETS.joinpath(MANIFEST).read_text())
+    manifest = json.loads(ASSETS.joinpath(MANIFEST).read_text())["LavaBridge-v0"]
     assert len(demos7500["observations"]) == 7500
     assert len(np.unique(demos7500["episode_ids"])) == manifest["7500"]["episodes"]
     assert manifest["500"]["episodes"] == 3
     assert {size: entry["seed"] for size, entry in manifest.items()} == {str(k): v for k, v in SHIPPED_SEEDS.items()}
+
+
+def test_lava_bridge_v0_sets_keep_their_original_files_and_hashes():
+    """The suite added tasks beside LavaBridge-v0; its shipped sets are the ones runs were trained on."""
+    manifest = json.loads(ASSETS.joinpath(MANIFEST).read_text())["LavaBridge-v0"]
+    assert {size: (entry["file"], entry["sha256"]) for size, entry in manifest.items()} == {
+        "500": ("demos_500.npz", "72dfebbf4ec01fbd86dd32d89fbdda02934d96b67bebf8041e46b45698ebae10"),
+        "7500": ("demos_7500.npz", "4ff4c781432291186c929794ee54a15c7aa50f958fa64044d6e34398c82aec71"),
+    }
 
 
 @pytest.mark.parametrize("size", [500, 7500])
@@ -142,7 +151,7 @@ def test_regenerating_the_500_set_is_bit_identical(demos500):
     regenerated = generate_demos(500, SHIPPED_SEEDS[500])
     assert content_hash(regenerated) == content_hash(demos500)
     manifest = json.loads(ASSETS.joinpath(MANIFEST).read_text())
-    assert content_hash(regenerated) == manifest["500"]["sha256"]
+    assert content_hash(regenerated) == manifest["LavaBridge-v0"]["500"]["sha256"]
     for name in FIELDS:
         assert np.array_equal(regenerated[name], demos500[name]), name
 

@@ -2,7 +2,8 @@
 
 Geometry of the default layout: bridge x in [-1.5, 1.5], |y| <= 0.15; lava elsewhere in that x
 range; rooms either side; outer walls' inner faces at |x| = 5.5, |y| = 2. Ball radius 0.05, top
-speed 4 m/s per axis, control period 0.1 s (10 physics steps of 0.01 s).
+speed 4 m/s per axis, control period 0.1 s (10 physics steps of 0.01 s). The tests that need no
+particular geometry run on every task of the suite (`TASK_IDS`).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import lava_bridge_mj
-from lava_bridge_mj import Layout, LavaBridgeEnv, start_distribution
+from lava_bridge_mj import TASKS, Layout, LavaBridgeEnv, start_distribution
 from lava_bridge_mj.mjcf import build_mjcf, load_model, shipped_xml
 
 LAYOUT = Layout()
@@ -27,6 +28,7 @@ R = LAYOUT.ball_radius
 H = LAYOUT.timestep
 DT = LAYOUT.control_dt
 SAFE_STATE = np.array([-4.5, 0.0, 0.0, 0.0])  # at rest in the start room, far from everything
+TASK_IDS = list(TASKS)
 
 
 @pytest.fixture
@@ -64,24 +66,28 @@ needs_gl = pytest.mark.skipif(NO_GL is not None, reason=str(NO_GL))
 
 
 # --- gymnasium API ------------------------------------------------------------------------------
+@pytest.mark.parametrize("env_id", TASK_IDS)
 @pytest.mark.parametrize("render_mode", [None, pytest.param("rgb_array", marks=needs_gl)])
-def test_gymnasium_env_checker_passes(render_mode):
-    env = gymnasium.make("LavaBridge-v0", render_mode=render_mode, width=240, height=100)
+def test_gymnasium_env_checker_passes(env_id, render_mode):
+    env = gymnasium.make(env_id, render_mode=render_mode, width=240, height=100)
     try:
         check_env(env.unwrapped)
     finally:
         env.close()
 
 
-def test_make_has_500_step_time_limit_and_truncates_there():
-    env = gymnasium.make("LavaBridge-v0")
+@pytest.mark.parametrize("env_id", TASK_IDS)
+def test_make_has_500_step_time_limit_and_truncates_there(env_id):
+    env = gymnasium.make(env_id)
     assert env.spec.max_episode_steps == 500 == lava_bridge_mj.MAX_EPISODE_STEPS
-    env.reset(seed=0, options={"state": SAFE_STATE})
+    blob = TASKS[env_id].p0_blobs[0]
+    safe_state = np.array([blob.x, blob.y, 0.0, 0.0])  # at rest in the start room, far from everything
+    env.reset(seed=0, options={"state": safe_state})
     for t in range(1, 501):
         obs, reward, terminated, truncated, info = env.step(np.zeros(2, dtype=np.float32))
         assert not terminated and reward == 0.0
         assert truncated == (t == 500), t
-    np.testing.assert_array_equal(obs, SAFE_STATE)  # at rest with no force, nothing moves
+    np.testing.assert_array_equal(obs, safe_state)  # at rest with no force, nothing moves
     env.close()
 
 
@@ -106,11 +112,12 @@ def test_spaces():
 
 
 # --- seeding and determinism ------------------------------------------------------------------------
-def test_seeded_runs_are_identical_including_resets():
+@pytest.mark.parametrize("env_id", TASK_IDS)
+def test_seeded_runs_are_identical_including_resets(env_id):
     actions = np.random.default_rng(7).uniform(-1, 1, size=(300, 2)).astype(np.float32)
     runs = []
     for _ in range(2):
-        env = gymnasium.make("LavaBridge-v0")
+        env = gymnasium.make(env_id)
         obs, _ = env.reset(seed=123, options={"start": "ood"})
         record, resets = [obs], 0
         for t, action in enumerate(actions):
@@ -128,16 +135,18 @@ def test_seeded_runs_are_identical_including_resets():
         assert np.array_equal(a, b), (a, b)
 
 
-def test_seeded_reset_equals_start_distribution_sample():
+@pytest.mark.parametrize("env_id", TASK_IDS)
+def test_seeded_reset_equals_start_distribution_sample(env_id):
     """gymnasium seeds np_random as default_rng(seed): the first reset is a known, exact draw."""
-    env = LavaBridgeEnv()
+    layout = TASKS[env_id]
+    env = LavaBridgeEnv(layout=layout)
     for name in ("p0", "ood"):
         for seed in (0, 1, 2024):
             obs, _ = env.reset(seed=seed, options={"start": name})
-            expected = start_distribution(LAYOUT, name).sample(np.random.default_rng(seed))
+            expected = start_distribution(layout, name).sample(np.random.default_rng(seed))
             np.testing.assert_array_equal(obs, expected)
     default, _ = env.reset(seed=5)
-    np.testing.assert_array_equal(default, start_distribution(LAYOUT, "p0").sample(np.random.default_rng(5)))
+    np.testing.assert_array_equal(default, start_distribution(layout, "p0").sample(np.random.default_rng(5)))
 
 
 def test_different_seeds_give_different_starts():
@@ -528,8 +537,9 @@ def test_unknown_make_kwargs_raise_type_error():
 
 
 # --- random policy and start distributions -------------------------------------------------------------
-def test_random_policy_from_p0_never_succeeds():
-    env = LavaBridgeEnv()
+@pytest.mark.parametrize("env_id", TASK_IDS)
+def test_random_policy_from_p0_never_succeeds(env_id):
+    env = LavaBridgeEnv(layout=TASKS[env_id])
     rng = np.random.default_rng(0)
     env.reset(seed=0)
     outcomes = {"success": 0, "lava": 0, "timeout": 0}
@@ -544,9 +554,13 @@ def test_random_policy_from_p0_never_succeeds():
     assert outcomes["success"] == 0, outcomes
 
 
-@pytest.mark.parametrize("name, discs", [("p0", LAYOUT.p0_blobs), ("ood", LAYOUT.ood_spots)])
-def test_start_distributions_sample_their_discs_at_rest(name, discs):
-    env = LavaBridgeEnv()
+@pytest.mark.parametrize("env_id", TASK_IDS)
+@pytest.mark.parametrize("name", ["p0", "ood"])
+def test_start_distributions_sample_their_discs_at_rest(env_id, name):
+    layout = TASKS[env_id]
+    discs = layout.p0_blobs if name == "p0" else layout.ood_spots
+    hx, hy = layout.half_extent
+    env = LavaBridgeEnv(layout=layout)
     env.reset(seed=11)
     hits = np.zeros(len(discs), dtype=int)
     for _ in range(400):
@@ -555,10 +569,11 @@ def test_start_distributions_sample_their_discs_at_rest(name, discs):
         inside = [math.hypot(obs[0] - d.x, obs[1] - d.y) <= d.radius + 1e-12 for d in discs]
         assert sum(inside) == 1, (obs, discs)
         hits[inside.index(True)] += 1
-        assert lava_distance(*obs[:2]) > R and abs(obs[0]) + R <= 5.5 and abs(obs[1]) + R <= 2.0
+        pits = layout.lava_pits.values()
+        assert min(pit.distance_to(*obs[:2]) for pit in pits) > R and abs(obs[0]) + R <= hx and abs(obs[1]) + R <= hy
     assert hits.min() > 400 / len(discs) / 2, hits  # every disc is used, roughly uniformly
     # seeded: the same seed gives the same sample stream
-    a, b = LavaBridgeEnv(), LavaBridgeEnv()
+    a, b = LavaBridgeEnv(layout=layout), LavaBridgeEnv(layout=layout)
     sa = [a.reset(seed=4, options={"start": name})[0]] + [a.reset(options={"start": name})[0] for _ in range(5)]
     sb = [b.reset(seed=4, options={"start": name})[0]] + [b.reset(options={"start": name})[0] for _ in range(5)]
     assert np.array_equal(sa, sb)
@@ -689,8 +704,9 @@ def test_reset_options_arrays_are_copied(env):
     assert np.array_equal(env.get_state(), [-3.0, 0.5, 0.1, 0.2]) and obs[0] == -3.0
 
 
-def test_observations_stay_in_the_observation_space_under_random_actions():
-    env = LavaBridgeEnv()
+@pytest.mark.parametrize("env_id", TASK_IDS)
+def test_observations_stay_in_the_observation_space_under_random_actions(env_id):
+    env = LavaBridgeEnv(layout=TASKS[env_id])
     rng = np.random.default_rng(1)
     env.reset(seed=1, options={"start": "ood"})
     for action in rng.uniform(-1, 1, (2000, 2)) * 1.0:

@@ -8,8 +8,8 @@ import lava_bridge_mj
 from lava_bridge_mj import ENV_ID, LavaBridgeVectorEnv
 
 
-def sync_envs(k, **kwargs):
-    return gymnasium.vector.SyncVectorEnv([lambda: gymnasium.make(ENV_ID, **kwargs) for _ in range(k)])
+def sync_envs(k, env_id=ENV_ID, **kwargs):
+    return gymnasium.vector.SyncVectorEnv([lambda: gymnasium.make(env_id, **kwargs) for _ in range(k)])
 
 
 def assert_same_step(a, b):
@@ -28,10 +28,11 @@ def test_make_vec_returns_the_native_vector_env():
     assert envs.metadata["autoreset_mode"] == gymnasium.vector.AutoresetMode.NEXT_STEP
 
 
-@pytest.mark.parametrize("kwargs", [{}, {"lava_reward": 0.0, "bridge_width": 0.4}])
-def test_matches_sync_vector_env_of_single_envs_through_terminations_truncations_and_autoresets(kwargs):
+@pytest.mark.parametrize("env_id, kwargs", [(ENV_ID, {}), (ENV_ID, {"lava_reward": 0.0, "bridge_width": 0.4}),
+                                            *((env_id, {}) for env_id in list(lava_bridge_mj.TASKS)[1:])])
+def test_matches_sync_vector_env_of_single_envs_through_terminations_truncations_and_autoresets(env_id, kwargs):
     k, steps = 6, 1_200  # > 2 horizons: every sub-env truncates at least twice or terminates
-    native, reference = gymnasium.make_vec(ENV_ID, num_envs=k, **kwargs), sync_envs(k, **kwargs)
+    native, reference = gymnasium.make_vec(env_id, num_envs=k, **kwargs), sync_envs(k, env_id, **kwargs)
     rng = np.random.default_rng(0)
     first = native.reset(seed=7), reference.reset(seed=7)
     np.testing.assert_array_equal(first[0][0], first[1][0])
