@@ -24,10 +24,12 @@ from pathlib import Path
 # is loaded, so it is set before anything imports torch; a value the user set is kept.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
+import lava_bridge_mj  # noqa: E402
 from lava_bridge_mj.eval.runner import MAX_SEED, METHODS, RunConfig  # noqa: E402
 from lava_bridge_mj.eval.run_files import run_files  # noqa: E402
 
 DEFAULTS = RunConfig()
+TASK_IDS = tuple(lava_bridge_mj.TASKS)
 SUBCOMMANDS = {"report": "lava_bridge_mj.eval.report", "video": "lava_bridge_mj.eval.video",
                "sweep": "lava_bridge_mj.eval.sweep"}
 """`lava-bridge-bench NAME ...` runs module's main(rest of argv); without a name, the training command."""
@@ -82,7 +84,7 @@ def format_seeds(seeds: Sequence[int]) -> str:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="lava-bridge-bench",
-        description="Train a method on LavaBridge-v0 (SAC from a start-state distribution, a hybrid "
+        description="Train a method on a Lava Bridge task (SAC from a start-state distribution, a hybrid "
                     "or an offline baseline), evaluating the deterministic policy's success rate from "
                     "p0 (the MDP's starts) and ood (unseen starts) as it learns. Writes a run "
                     "directory with config.json, "
@@ -107,6 +109,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="train several seeds together in one process (stacked networks, one batched "
                             "update for all), e.g. 0-24 or 0,3,5-7; each seed writes the run directory it "
                             "would write alone, OUT/seedS")
+    parser.add_argument("--env", dest="env_id", metavar="ID", choices=TASK_IDS,
+                        help=f"the task, one of {', '.join(TASK_IDS)} (default: {DEFAULTS.env_id})")
     parser.add_argument("--steps", type=_positive_int,
                         help=f"online env steps (default: {DEFAULTS.steps}; the paper's protocol: 300000)")
     parser.add_argument("--demos", type=int, choices=(500, 7500),
@@ -156,7 +160,7 @@ def read_config_file(path: Path | None, parser: argparse.ArgumentParser) -> dict
 def _config_from(args: argparse.Namespace, parser: argparse.ArgumentParser) -> RunConfig:
     values = read_config_file(args.config, parser)
     values["method"] = args.method
-    for name in ("seed", "steps", "demos", "eval_every", "eval_episodes"):
+    for name in ("env_id", "seed", "steps", "demos", "eval_every", "eval_episodes"):
         if getattr(args, name) is not None:
             values[name] = getattr(args, name)
     try:
@@ -236,10 +240,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.video:
         import gymnasium
 
-        import lava_bridge_mj
         from lava_bridge_mj.eval import video
 
-        env = gymnasium.make(lava_bridge_mj.ENV_ID, render_mode="rgb_array", **config.env)
+        env = gymnasium.make(config.env_id, render_mode="rgb_array", **config.env)
         try:
             for i, seed_run in enumerate(run.seed_runs):
                 if seed_run.config.seed in run.diverged:

@@ -133,6 +133,8 @@ class RunConfig:
     goaldist_ss), HySAC, whose minibatches mix in the demo transitions (hysac from p0, hysac_auxss), JSRL
     (a guide learned from the demos acts first in each episode), or an offline method trained on the demo
     transitions alone (bc, iql)."""
+    env_id: str = lava_bridge_mj.ENV_ID
+    """The task, an id of `lava_bridge_mj.TASKS`: its layout, its p0 and ood starts, and its shipped demos."""
     seed: int = 0
     """Seeds the networks, the env, the start strategy, the replay sampling and the demo subset."""
     steps: int = 50_000
@@ -176,12 +178,22 @@ class RunConfig:
         self.hybrid_fraction = check_number("hybrid_fraction", self.hybrid_fraction, 0, 1, low_inclusive=True)
         if self.demos not in (500, 7500):
             raise ValueError(f"demos must be 500 or 7500, got {self.demos!r}")
+        if not isinstance(self.env_id, str) or self.env_id not in lava_bridge_mj.TASKS:
+            raise ValueError(f"unknown env_id {self.env_id!r}; expected one of {list(lava_bridge_mj.TASKS)}")
         if not isinstance(self.env, dict):
             raise ValueError(f"env must be a dict of LavaBridgeEnv keyword arguments, got {self.env!r}")
         try:
-            lava_bridge_mj.LavaBridgeEnv(**self.env).close()  # refuse bad env arguments before any work
+            self.make_env().close()  # refuse bad env arguments before any work
         except (TypeError, ValueError) as error:
             raise ValueError(f"env: {error}") from None
+
+    def env_kwargs(self) -> dict[str, Any]:
+        """LavaBridgeEnv's (and LavaBridgeVectorEnv's) keyword arguments: the task's layout, then `env`."""
+        return {"layout": lava_bridge_mj.task_layout(self.env_id), **self.env}
+
+    def make_env(self, **kwargs: Any) -> lava_bridge_mj.LavaBridgeEnv:
+        """The run's task as a single env (`kwargs` e.g. render_mode)."""
+        return lava_bridge_mj.LavaBridgeEnv(**self.env_kwargs(), **kwargs)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON values (tuples become lists), as written to config.json."""
@@ -191,7 +203,8 @@ class RunConfig:
         """True when `saved` (a config.json's values) is this run up to its step budget: `steps` is
         the one field a resume may change, because nothing but the loop's end depends on it, so a
         finished run extended to more steps equals a run trained to them in one go."""
-        return isinstance(saved, dict) and {**saved, "steps": self.steps} == self.to_dict()
+        # a config.json from before env_id existed was LavaBridge-v0's, the only task then
+        return isinstance(saved, dict) and {"env_id": lava_bridge_mj.ENV_ID, **saved, "steps": self.steps} == self.to_dict()
 
     @classmethod
     def from_dict(cls, values: dict[str, Any], source: str = "config") -> "RunConfig":
@@ -228,7 +241,7 @@ def _check_keys(values: dict[str, Any], dataclass: type, source: str) -> None:
 
 def candidate_states(config: RunConfig) -> np.ndarray:
     """The start strategy's candidate states: a seeded subset of the demo set's observations."""
-    states = lava_bridge_mj.load_demos(config.demos)["observations"]
+    states = lava_bridge_mj.load_demos(config.demos, env_id=config.env_id)["observations"]
     rng = np.random.default_rng([config.seed, 2024])  # its own stream: independent of training draws
     size = min(config.demo_subset, len(states))
     return states[np.sort(rng.choice(len(states), size=size, replace=False))]
@@ -257,8 +270,8 @@ def demo_buffer(config: RunConfig) -> ReplayBuffer:
 
     The shipped demos carry the default rewards (+1 at the goal, 0 otherwise; the expert never
     touches lava); they are relabelled with the run's env rewards so both buffers agree."""
-    demos = lava_bridge_mj.load_demos(config.demos)
-    env = lava_bridge_mj.LavaBridgeEnv(**config.env)
+    demos = lava_bridge_mj.load_demos(config.demos, env_id=config.env_id)
+    env = config.make_env()
     rewards = np.where(demos["rewards"] == 1.0, env.goal_reward, env.step_reward)
     buffer = ReplayBuffer(len(rewards), 4, 2)
     for transition in zip(demos["observations"], demos["actions"], rewards, demos["next_observations"],
@@ -458,12 +471,12 @@ class Run:
             raise ValueError(f"seeds must be distinct, got {seeds}")
         self.config = configs[0]
         # evaluation resets every env with a fixed seed, so one of them can serve as the strategies' probe
-        self.eval_envs = [lava_bridge_mj.LavaBridgeEnv(**self.config.env) for _ in range(self.config.eval_episodes)]
+        self.eval_envs = [self.config.make_env() for _ in range(self.config.eval_episodes)]
         # the seeds share the config's demo set; the buffer is never written, so one copy serves all
         uses_demos = self.config.method in (*HYBRID_METHODS, *OFFLINE_METHODS, "jsrl")
         demos = demo_buffer(self.config) if uses_demos else None
         # one vector env steps every seed's episode: sub-env i is seed i's, seeded with that seed
-        self.envs = LavaBridgeVectorEnv(len(configs), **self.config.env)
+        self.envs = LavaBridgeVectorEnv(len(configs), **self.config.env_kwargs())
         self.seed_runs = [SeedRun(c, d, probe=self.eval_envs[0], envs=self.envs, index=i, offline=demos)
                           for i, (c, d) in enumerate(zip(configs, out_dirs))]
         self._start_episodes(np.ones(len(configs), dtype=bool), seeds=seeds)

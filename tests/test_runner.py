@@ -503,3 +503,35 @@ def test_a_batch_or_buffer_that_cannot_fit_in_memory_is_refused_at_once(tmp_path
         err = capsys.readouterr().err
         assert "does not fit in memory" in err and err.count("\n") == 1
         assert not (tmp_path / "run").exists()
+
+
+def test_env_selects_the_task_its_demos_and_its_starts(tmp_path, capsys):
+    task = "LavaBridgeBend-v0"  # its expert path differs from LavaBridge-v0's (the narrow bridge's does not)
+    out = tmp_path / "run"
+    assert cli.main(["--method", "auxss", "--env", task, "--steps", "100", "--eval-every", "100",
+                     "--eval-episodes", "2", "--out", str(out), "--no-progress"]) == 0
+    config = json.loads((out / "config.json").read_text())
+    assert config["env_id"] == task
+    run_config = RunConfig.from_dict(config)
+    assert run_config.make_env().layout == lava_bridge_mj.task_layout(task)
+    demo_states = lava_bridge_mj.load_demos(500, env_id=task)["observations"]
+    with np.load(out / "start_weights.npz") as weights:
+        candidates = weights["states"]
+    assert all((demo_states == state).all(axis=1).any() for state in candidates)
+    assert not all((lava_bridge_mj.load_demos(500)["observations"] == state).all(axis=1).any() for state in candidates)
+    with pytest.raises(SystemExit):
+        cli.main(["--method", "auxss", "--env", "LavaBridge-v9", "--out", str(tmp_path / "other")])
+    assert "invalid choice: 'LavaBridge-v9'" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="unknown env_id 'LavaBridge-v9'"):
+        RunConfig(env_id="LavaBridge-v9")
+
+
+def test_a_run_recorded_before_env_id_existed_still_resumes(finished_run, tmp_path):
+    out = copy_run(finished_run, tmp_path / "run")
+    saved = json.loads((out / "config.json").read_text())
+    del saved["env_id"]
+    (out / "config.json").write_text(json.dumps(saved))
+    assert tiny_config(steps=300).continues(saved)
+    assert not dataclasses.replace(tiny_config(steps=300), env_id="LavaBridgeNarrow-v0").continues(saved)
+    train(tiny_config(steps=400), out, resume=True, progress=False)
+    assert json.loads((out / "config.json").read_text())["env_id"] == "LavaBridge-v0"
