@@ -25,7 +25,7 @@ from pathlib import Path
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import lava_bridge_mj  # noqa: E402
-from lava_bridge_mj.eval.runner import MAX_SEED, METHODS, RunConfig  # noqa: E402
+from lava_bridge_mj.eval.runner import MAX_SEED, METHODS, RunConfig, check_batch_fits  # noqa: E402
 from lava_bridge_mj.eval.run_files import run_files  # noqa: E402
 
 DEFAULTS = RunConfig()
@@ -196,6 +196,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     config = _config_from(args, parser)
     seeds = args.seeds or [config.seed]
+    try:
+        check_batch_fits(config, len(seeds))
+    except ValueError as error:
+        parser.error(str(error))
     if args.seeds:
         root = args.out or Path("runs") / config.method
         outs = [root / f"seed{seed}" for seed in seeds]

@@ -259,6 +259,12 @@ def trained_configs(config: RunConfig) -> list[SACConfig | BCConfig | IQLConfig]
     return [agent_config(config), *guide]
 
 
+def check_batch_fits(config: RunConfig, seeds: int) -> None:
+    """ValueError unless `seeds` seeds of `config` fit in memory: checked before anything is built per
+    seed, so an impossible batch fails at once instead of minutes later (or in MemoryError)."""
+    check_fits_in_memory(*trained_configs(config), seeds=seeds, obs_dim=4, act_dim=2)
+
+
 def make_agent(config: RunConfig, seeds: Sequence[int]) -> SAC | BC | IQL:
     """The method's learner for `seeds`, all stacked in one agent."""
     agent_class = {"bc": BC, "iql": IQL}.get(config.method, SAC)
@@ -733,8 +739,7 @@ def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seed
     from its checkpoints; the configuration must match) or `overwrite` (remove that run's files first).
     While training, every directory is locked against a second process.
     """
-    # before building anything per seed: a batch that cannot fit in memory fails now, not minutes later
-    check_fits_in_memory(*trained_configs(config), seeds=1 if seeds is None else len(seeds), obs_dim=4, act_dim=2)
+    check_batch_fits(config, 1 if seeds is None else len(seeds))
     if seeds is None:
         configs, dirs = [config], [Path(out_dir)]
     else:

@@ -495,13 +495,20 @@ def test_a_diverged_seed_stops_alone_and_the_batch_trains_on(tmp_path, capsys, w
 
 
 def test_a_batch_or_buffer_that_cannot_fit_in_memory_is_refused_at_once(tmp_path, capsys):
-    """A million seeds, or a 10^12-transition buffer, used to run for minutes or end in MemoryError."""
-    config = tmp_path / "huge.json"
-    config.write_text(json.dumps({"sac": {"buffer_size": 10**12}}))
-    for argv in (["--seeds", "0-1000000"], ["--config", str(config)]):
-        assert cli.main(["--method", "auxss", "--out", str(tmp_path / "run"), "--no-progress", *argv]) == 2
-        err = capsys.readouterr().err
-        assert "does not fit in memory" in err and err.count("\n") == 1
+    """A million seeds, a 10^12-transition buffer or 100,000-unit layers used to run for minutes or end
+    in MemoryError."""
+    buffer, layers = tmp_path / "buffer.json", tmp_path / "layers.json"
+    buffer.write_text(json.dumps({"sac": {"buffer_size": 10**12}}))
+    layers.write_text(json.dumps({"sac": {"hidden_sizes": [100000, 100000]}}))
+    for argv in (["--seeds", "0-1000000"], ["--config", str(buffer)], ["--config", str(layers)]):
+        if argv[0] == "--config":  # train() checks too, for callers of the Python API
+            with pytest.raises(ValueError, match="does not fit in memory"):
+                train(RunConfig.from_dict(json.loads(open(argv[1]).read())), tmp_path / "api")
+            assert not (tmp_path / "api").exists()
+        with pytest.raises(SystemExit) as exit_info:
+            cli.main(["--method", "auxss", "--out", str(tmp_path / "run"), "--no-progress", *argv])
+        assert exit_info.value.code == 2
+        assert "does not fit in memory" in capsys.readouterr().err
         assert not (tmp_path / "run").exists()
 
 
