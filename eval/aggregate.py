@@ -55,7 +55,7 @@ from typing import Any
 import numpy as np
 import scipy.stats
 
-from lava_bridge_mj.eval.summary import THRESHOLD, read_metrics, seed_summary
+from lava_bridge_mj.eval.summary import THRESHOLD, read_config, read_metrics, seed_summary
 
 METRICS = ("success_p0", "success_ood", "train_return")
 """The metrics with curves: success rate from p0 and from ood, and the training return."""
@@ -95,20 +95,19 @@ def find_runs(root: str | Path, budget: float | None = None, seeds: Collection[i
     if not root.is_dir():
         raise ValueError(f"{root} is not a directory")
     runs = []
-    for config_file in sorted(root.rglob("config.json")):
+    try:
+        config_files = sorted(root.rglob("config.json"))
+    except OSError as error:
+        raise ValueError(f"{root} cannot be searched for runs: {error}") from None
+    for config_file in config_files:
         directory = config_file.parent
         if not (directory / "metrics.csv").is_file():
             continue
-        try:
-            config = json.loads(config_file.read_text())
-        except (OSError, ValueError) as error:
-            raise ValueError(f"{config_file} cannot be read as JSON: {error}") from None
-        if not isinstance(config, dict):
-            raise ValueError(f"{config_file} does not hold a run configuration (a JSON object)")
-        try:
-            rows = read_metrics(directory)
-        except (OSError, ValueError, TypeError, KeyError) as error:
-            raise ValueError(f"{directory / 'metrics.csv'} cannot be read: {error}") from None
+        config = read_config(directory)  # ValueErrors name the file
+        for key, kind, what in (("seed", int, "an integer"), ("demos", int, "an integer"), ("method", str, "a name")):
+            if key in config and (not isinstance(config[key], kind) or isinstance(config[key], bool)):
+                raise ValueError(f"{config_file}: {key} must be {what}, got {config[key]!r}")
+        rows = read_metrics(directory)
         if budget is not None:
             rows = [row for row in rows if row["step"] <= budget]
         if rows and (seeds is None or config.get("seed") in seeds):

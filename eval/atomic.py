@@ -12,7 +12,8 @@ from typing import IO, Callable
 
 
 def atomic_write(path: str | Path, write: Callable[[IO[bytes]], None]) -> None:
-    """Call `write(f)` on a temporary binary file, then atomically move it to `path`."""
+    """Call `write(f)` on a temporary binary file, then atomically move it to `path`. An OSError
+    (disk full, read-only directory, ...) names `path` in its `filename` if it named no file."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     try:
@@ -22,20 +23,21 @@ def atomic_write(path: str | Path, write: Callable[[IO[bytes]], None]) -> None:
             os.fsync(f.fileno())
         os.replace(tmp, path)
     except OSError as error:
-        if error.filename is None:  # a failed write (full disk) names no file: name the one being replaced
-            raise OSError(error.errno, error.strerror, str(path)) from error
+        if error.filename is None or error.filename == str(tmp):
+            error.filename = str(path)  # the reader knows the target, not the temporary name
         raise
     finally:
         tmp.unlink(missing_ok=True)
-    _fsync_directory(path.parent)
+    fsync_directory(path.parent)
 
 
 def atomic_write_text(path: str | Path, text: str) -> None:
     atomic_write(path, lambda f: f.write(text.encode()))
 
 
-def _fsync_directory(directory: Path) -> None:
-    # the rename itself is durable only once the directory entry is flushed
+def fsync_directory(directory: Path) -> None:
+    """Make the renames done in `directory` durable (best effort: some systems cannot open one)."""
+    # a rename itself is durable only once the directory entry is flushed
     try:
         fd = os.open(directory, os.O_RDONLY)
     except OSError:

@@ -17,6 +17,12 @@ evaluation per group, and the steps to p0 success >= 0.8 with how many seeds got
 across seeds, bands their 95% stratified-bootstrap CIs (rliable). A figure none of whose methods is in
 DIR is skipped with a line in report.md saying so. For the offline methods (bc, iql) a step is a
 gradient step, not an env step; their legend entries say so.
+
+Everything is drawn into a temporary directory inside OUT and moved into place only once all of it
+is written, report.md last: an error (a damaged run file, a full disk) leaves OUT as it was. A
+start_weights.npz that cannot be read is skipped with a warning (on stderr and in report.md), the
+maze figure taking its start weights from another run: that run's metrics, and so its curves and
+tables, are intact, and one damaged side file should not cost the whole report.
 """
 
 from __future__ import annotations
@@ -24,7 +30,11 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import os
+import shutil
+import signal
 import sys
+import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -33,8 +43,10 @@ import numpy as np
 from lava_bridge_mj.eval.aggregate import (BOOTSTRAP_REPS, BOOTSTRAP_SEED, METRICS, THRESHOLD, Curve, Group,
                                            RunRecord, find_runs, group_runs, iqm_curves, late_means,
                                            steps_to_threshold)
-from lava_bridge_mj.eval.cli import _positive_int, format_seeds, parse_seeds
+from lava_bridge_mj.eval.cli import _positive_int, format_seeds
 from lava_bridge_mj.eval.findings import check_findings, common_step, demo_size_rows, variant_rows
+from lava_bridge_mj.eval.summary import read_start_weights
+from lava_bridge_mj.eval.sweep import seed_list
 
 STANDARD_DEMOS = 500
 """The paper's benchmark protocol gives every demo-using method 500 transitions (0.5K)."""
@@ -205,11 +217,13 @@ def demo_size_groups(groups: list[Group]) -> list[Group]:
     return [g for g in groups if g.method in both and g.demos in DEMO_SIZES]
 
 
-def weights_run(groups: list[Group], threshold: float) -> RunRecord | None:
+def weights_run(groups: list[Group], threshold: float, usable=None) -> RunRecord | None:
     """The AuxSS run whose start weights the maze figure shows: of the first AuxSS group (0.5K first)
-    with start_weights.npz, the lowest seed that reached the threshold, else its lowest seed."""
+    with start_weights.npz, the lowest seed that reached the threshold, else its lowest seed. `usable`
+    (a run -> bool) can rule out runs whose file cannot be read."""
     for group in benchmark_groups(groups, ("auxss",)):
-        runs = [run for run in group.runs if (run.path / "start_weights.npz").is_file()]
+        runs = [run for run in group.runs
+                if (run.path / "start_weights.npz").is_file() and (usable is None or usable(run))]
         if runs:
             reached = steps_to_threshold(group, threshold).per_seed
             solved = [run for run in runs if math.isfinite(reached[run.seed])]
@@ -217,11 +231,16 @@ def weights_run(groups: list[Group], threshold: float) -> RunRecord | None:
     return None
 
 
-def _layout(config: dict):
+def _layout(run: RunRecord):
+    """The maze of the run's env settings; ValueError naming its config.json when they make none."""
     import lava_bridge_mj
 
     fields = {f.name for f in dataclasses.fields(lava_bridge_mj.Layout)}
-    return lava_bridge_mj.Layout(**{k: v for k, v in config.get("env", {}).items() if k in fields})
+    env = run.config.get("env", {})
+    try:
+        return lava_bridge_mj.Layout(**{k: v for k, v in env.items() if k in fields})
+    except (AttributeError, TypeError, ValueError) as error:
+        raise ValueError(f"{run.path / 'config.json'}: its env settings make no maze ({error})") from None
 
 
 # --- the report ----------------------------------------------------------------------------------
@@ -246,14 +265,26 @@ def _runs_table(groups: list[Group]) -> list[str]:
     return lines
 
 
-def _maze_section(groups: list[Group], threshold: float, where: str, out: Path) -> list[str]:
-    """Draw maze.png/pdf; the report's paragraph about it."""
-    chosen = weights_run(groups, threshold)
-    source = chosen or next((r for g in groups for r in g.runs if (r.path / "start_weights.npz").is_file()), None)
+def _maze_section(groups: list[Group], threshold: float, where: str, out: Path, warnings: list[str]) -> list[str]:
+    """Draw maze.png/pdf; the report's paragraph about it. A start_weights.npz that cannot be read is
+    passed over, with a line in `warnings`."""
+    weights: dict[Path, tuple | None] = {}
+
+    def usable(run: RunRecord) -> bool:
+        if run.path not in weights:
+            try:
+                weights[run.path] = read_start_weights(run.path / "start_weights.npz")
+            except ValueError as error:
+                weights[run.path] = None
+                warnings.append(f"{error}. The maze figure does not use it.")
+        return weights[run.path] is not None
+
+    chosen = weights_run(groups, threshold, usable)
+    source = chosen or next((r for g in groups for r in g.runs
+                             if (r.path / "start_weights.npz").is_file() and usable(r)), None)
     states, snapshots = None, []
     if source is not None:  # every run's start_weights.npz holds its candidate states
-        with np.load(source.path / "start_weights.npz") as saved:
-            states, steps, probabilities = saved["states"], saved["steps"], saved["probabilities"]
+        steps, states, probabilities = weights[source.path]
     if chosen is not None:  # only the evaluations the report keeps (see --budget)
         kept = steps <= chosen.rows[-1]["step"]
         steps, probabilities = steps[kept], probabilities[kept]
@@ -270,9 +301,11 @@ def _maze_section(groups: list[Group], threshold: float, where: str, out: Path) 
         caption = "the maze" + with_states
         text = (f"The maze{with_states}. *No AuxSS run with start_weights.npz in {where}: the start weights "
                 f"are not shown.*")
-    layout = _layout((source or groups[0].runs[0]).config)
+    layout = _layout(source or groups[0].runs[0])
     save_figure(maze_figure(layout, states, snapshots, caption), out, "maze")
-    return [text, "", "![The maze and AuxSS start weights](maze.png)", "", "[PDF](maze.pdf)"]
+    notes = [f"*Skipped: {warning}*" for warning in warnings]
+    return [text, *(["", *notes] if notes else []), "", "![The maze and AuxSS start weights](maze.png)", "",
+            "[PDF](maze.pdf)"]
 
 
 def _last_evaluation_table(groups: list[Group], curves: dict[str, dict[str, Curve]]) -> list[str]:
@@ -334,18 +367,53 @@ def build_report(roots: Path | Sequence[Path], out: Path, threshold: float = THR
                  seeds: list[int] | None = None) -> Path:
     """Write every figure and report.md for the runs under `roots` (one directory or several; or
     `runs`, found there already) into `out`; returns report.md's path. `budget` and `seeds` select
-    evaluations and runs as `find_runs` does. ValueError, before anything is written, when a root
-    holds no such run."""
-    from lava_bridge_mj.eval.atomic import atomic_write_text
-    from lava_bridge_mj.eval.runner import METHODS
-
+    evaluations and runs as `find_runs` does. ValueError when a root holds no such run or a run's
+    files cannot be used, OSError when `out` cannot be written: either way `out` is left as it was
+    (everything is written into a temporary directory there first). Warnings (start weights that
+    cannot be read) go to stderr and into report.md."""
     roots = [Path(roots)] if isinstance(roots, (str, Path)) else [Path(root) for root in roots]
     if runs is None:
         runs = [run for root in roots for run in find_runs(root, budget, seeds)]
     groups = group_runs(runs)
-    where = ", ".join(f"`{root}`" for root in roots)
     curves = {g.label: iqm_curves(g, METRICS, reps=reps) for g in groups}
+    made = [d for d in (out, *out.parents) if not d.exists()]
     out.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=".report-", dir=out))
+    try:
+        warnings = _write_report(staging, roots, groups, curves, threshold, reps, budget, seeds)
+        for warning in warnings:
+            print(f"lava-bridge-bench report: warning: {warning}", file=sys.stderr)
+        _publish(staging, out)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        for directory in made:  # innermost first; only those this call made, and only while empty
+            try:
+                directory.rmdir()
+            except OSError:
+                break
+        raise
+    shutil.rmtree(staging, ignore_errors=True)
+    return out / "report.md"
+
+
+def _publish(staging: Path, out: Path) -> None:
+    """Move every file written in `staging` into `out`, report.md last (renames within one filesystem:
+    no space needed, nothing half-written), then make the renames durable."""
+    from lava_bridge_mj.eval.atomic import fsync_directory
+
+    for path in sorted(staging.iterdir(), key=lambda p: (p.name == "report.md", p.name)):
+        os.replace(path, out / path.name)
+    fsync_directory(out)
+
+
+def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dict, threshold: float, reps: int,
+                  budget: int | None, seeds: list[int] | None) -> list[str]:
+    """Every figure and report.md into `out`; returns the warnings."""
+    from lava_bridge_mj.eval.atomic import atomic_write_text
+    from lava_bridge_mj.eval.runner import METHODS
+
+    warnings: list[str] = []
+    where = ", ".join(f"`{root}`" for root in roots)
     selection = [f"evaluations up to step {budget:,}" if budget is not None else "",
                  f"seeds {format_seeds(sorted(seeds))}" if seeds is not None else ""]
     selection = " and ".join(part for part in selection if part)
@@ -378,15 +446,15 @@ def build_report(roots: Path | Sequence[Path], out: Path, threshold: float = THR
     add_figure("start_distributions", "Start-distribution study", benchmark_groups(groups, START_STUDY),
                "SAC trained from each start-state distribution over the same candidate demo states.",
                f"none of {', '.join(START_STUDY)} has runs here.", START_STUDY)
-    lines.extend(["", "## The maze and AuxSS's start weights", "", *_maze_section(groups, threshold, where, out)])
+    lines.extend(["", "## The maze and AuxSS's start weights", "",
+                  *_maze_section(groups, threshold, where, out, warnings)])
     lines.extend(["", "## At the last evaluation", "", *_last_evaluation_table(groups, curves)])
     lines.extend(["", "## Over the last third of training", "", *_late_table(groups, reps)])
     lines.extend(["", f"## Steps to p0 success >= {threshold:g}", "", *_threshold_table(groups, threshold)])
     if threshold == THRESHOLD:  # the paper's claims are about 0.8
         lines.extend(["", "## The paper's findings", "", *_findings_section(groups)])
-    report = out / "report.md"
-    atomic_write_text(report, "\n".join(lines) + "\n")
-    return report
+    atomic_write_text(out / "report.md", "\n".join(lines) + "\n")
+    return warnings
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -405,7 +473,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--budget", type=_positive_int, default=None,
                         help="only evaluations at or before this step, e.g. 100000 to compare runs extended to "
                              "300000 with runs stopped at 100000 (default: every evaluation)")
-    parser.add_argument("--seeds", type=parse_seeds, default=None,
+    parser.add_argument("--seeds", type=seed_list, default=None,
                         help="only these seeds' runs, e.g. 0-4 or 0,3,5-7 (default: every run)")
     args = parser.parse_args(argv)
     if args.reps < 1:
@@ -413,18 +481,60 @@ def main(argv: list[str] | None = None) -> int:
     if not 0 <= args.threshold <= 1:
         parser.error(f"--threshold must be a success rate in [0, 1], got {args.threshold}")
     out = args.out if args.out is not None else args.dirs[0] / "report"
-    if out.exists() and not out.is_dir():
-        print(f"lava-bridge-bench report: error: --out {out} exists and is not a directory", file=sys.stderr)
-        return 2
+    unwritable = _unwritable(out)
+    if unwritable:
+        return _error(f"--out {out} {unwritable}")
     try:
         runs = [run for root in args.dirs for run in find_runs(root, args.budget, args.seeds)]  # before writing
         group_runs(runs)  # refuses a seed given twice
     except ValueError as error:
-        print(f"lava-bridge-bench report: error: {error}", file=sys.stderr)
-        return 2
-    report = build_report(args.dirs, out, args.threshold, args.reps, runs, args.budget, args.seeds)
+        return _error(str(error))
+    unchanged = f"{out} is left as it was" if out.exists() else "nothing written"
+    previous = signal.signal(signal.SIGTERM, _interrupt) if _in_main_thread() else None
+    try:
+        report = build_report(args.dirs, out, args.threshold, args.reps, runs, args.budget, args.seeds)
+    except ValueError as error:  # a run's files cannot be used (its config makes no maze, ...)
+        return _error(f"{error}; {unchanged}")
+    except OSError as error:  # a full disk, a directory that turned read-only, ...
+        return _error(f"cannot write the report into {out}: {error.strerror or error} ({error.filename}); "
+                      f"{unchanged}")
+    except KeyboardInterrupt:
+        return _error(f"interrupted; {unchanged}", code=130)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     print(f"wrote {report} and its figures from {len(runs)} runs")
     return 0
+
+
+def _unwritable(out: Path) -> str | None:
+    """Why files cannot be written into directory `out` (to be made where missing), or None."""
+    if out.exists() and not out.is_dir():
+        return "exists and is not a directory"
+    existing = out
+    while not existing.exists():  # the nearest existing ancestor is where the directory will be made
+        existing = existing.parent
+    if not existing.is_dir():
+        return f"cannot be made: {existing} is not a directory"
+    if not os.access(existing, os.W_OK | os.X_OK):
+        return f"cannot be written: {existing} is not a writable directory" if existing == out else \
+            f"cannot be made: {existing} is not a writable directory"
+    return None
+
+
+def _error(message: str, code: int = 2) -> int:
+    print(f"lava-bridge-bench report: error: {message}", file=sys.stderr)
+    return code
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def _in_main_thread() -> bool:
+    import threading
+
+    return threading.current_thread() is threading.main_thread()
 
 
 if __name__ == "__main__":

@@ -22,6 +22,7 @@ import csv
 import dataclasses
 import json
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -29,18 +30,84 @@ import numpy as np
 from lava_bridge_mj.layout import Layout
 
 THRESHOLD = 0.8
+METRIC_COLUMNS = ("step", "success_p0", "success_ood")
+"""The metrics.csv columns every reader needs (eval/runner.py writes more)."""
+EPISODE_COLUMNS = ("step", "start_x", "start_y", "success")
+"""The episodes.csv columns the start-room count needs."""
+
+
+def read_csv(path: Path, columns: tuple[str, ...]) -> list[dict[str, float]]:
+    """The rows of a CSV file of numbers as dicts; ValueError naming the file (and the line) when it
+    cannot be read, lacks one of `columns`, or holds something other than numbers."""
+    try:
+        with open(path, newline="") as f:
+            reader = csv.DictReader(f)
+            missing = [name for name in columns if name not in (reader.fieldnames or ())]
+            if missing:
+                raise ValueError(f"{path} is not a table as the trainer writes it: no column {', '.join(missing)}")
+            rows = []
+            for row in reader:
+                try:
+                    if None in row or None in row.values():
+                        raise ValueError("a row with another number of fields than the header")
+                    rows.append({name: float(value) for name, value in row.items()})
+                except ValueError as error:
+                    raise ValueError(f"{path} line {reader.line_num}: {error}") from None
+            return rows
+    except OSError as error:
+        raise ValueError(f"{path} cannot be read: {error.strerror or error}") from None
+    except (UnicodeDecodeError, csv.Error) as error:
+        raise ValueError(f"{path} is not a CSV table of numbers ({error})") from None
 
 
 def read_metrics(run_dir: Path) -> list[dict[str, float]]:
-    with open(run_dir / "metrics.csv") as f:
-        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+    """metrics.csv of a run directory, one dict of numbers per evaluation; ValueError naming the file."""
+    return read_csv(run_dir / "metrics.csv", METRIC_COLUMNS)
+
+
+def read_start_weights(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(steps, states, probabilities) of a start_weights.npz (eval/runner.py): at evaluation i, the
+    start strategy's probability of each candidate state (none for a p0 method). ValueError naming the
+    file when it cannot be read or does not hold that."""
+    try:
+        with np.load(path) as saved:  # allow_pickle stays off: a foreign file cannot run code
+            steps, states, probabilities = (np.asarray(saved[key]) for key in ("steps", "states", "probabilities"))
+    except KeyError as error:
+        raise ValueError(f"{path} lacks the array {error}: not start weights as the trainer writes them; move it "
+                         "aside or restore it") from None
+    except Exception as error:  # noqa: BLE001 - a damaged file fails in many ways (BadZipFile, EOFError, ...)
+        reason = (str(error).splitlines() or [""])[0]
+        raise ValueError(f"{path} is damaged ({type(error).__name__}: {reason}); move it aside or restore it") from None
+    shapes_agree = (steps.ndim == 1 and states.ndim == 2 and states.shape[1] >= 2 and probabilities.ndim == 2
+                    and probabilities.shape[0] == len(steps) and probabilities.shape[1] in (0, len(states)))
+    if not shapes_agree:
+        raise ValueError(f"{path} holds arrays of shapes steps {steps.shape}, states {states.shape}, probabilities "
+                         f"{probabilities.shape} that do not fit together; move it aside or restore it")
+    return steps, states, probabilities
+
+
+def read_config(run_dir: Path) -> dict:
+    """config.json of a run directory; ValueError naming the file when it is not a JSON object."""
+    path = run_dir / "config.json"
+    try:
+        config = json.loads(path.read_text())
+    except OSError as error:
+        raise ValueError(f"{path} cannot be read: {error.strerror or error}") from None
+    except ValueError as error:  # invalid JSON or bytes that are no text
+        raise ValueError(f"{path} is not valid JSON: {error}") from None
+    if not isinstance(config, dict):
+        raise ValueError(f"{path} does not hold a run configuration (a JSON object)")
+    return config
 
 
 def run_dirs(path: Path) -> list[Path]:
     """`path` itself if it is a run directory, else its run subdirectories in seed order."""
     if (path / "metrics.csv").exists():
         return [path]
-    found = [d for d in path.iterdir() if (d / "metrics.csv").exists()]
+    try:
+        found = [d for d in path.iterdir() if (d / "metrics.csv").exists()]
+    except OSError as error:
+        raise ValueError(f"{path} cannot be listed: {error.strerror or error}") from None
     if not found:
         raise ValueError(f"{path} holds no metrics.csv, directly or one level down")
     return sorted(found, key=lambda d: (len(d.name), d.name))
@@ -56,9 +123,14 @@ def seed_summary(rows: list[dict[str, float]], threshold: float = THRESHOLD) -> 
 
 def in_start_room(run_dir: Path, positions: np.ndarray) -> np.ndarray:
     """Which of `positions` ((n, 2+) arrays, x and y first) lie in the start room of the run's layout."""
-    env = json.loads((run_dir / "config.json").read_text()).get("env", {})
+    env = read_config(run_dir).get("env", {})
+    if not isinstance(env, dict):
+        raise ValueError(f"{run_dir / 'config.json'}: env must be a JSON object of layout settings, got {env!r}")
     layout_fields = {f.name for f in dataclasses.fields(Layout)}
-    room = Layout(**{k: v for k, v in env.items() if k in layout_fields}).start_room
+    try:
+        room = Layout(**{k: v for k, v in env.items() if k in layout_fields}).start_room
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"{run_dir / 'config.json'}: its env settings make no maze ({error})") from None
     return (np.abs(positions[:, 0] - room.x) <= room.half_x) & (np.abs(positions[:, 1] - room.y) <= room.half_y)
 
 
@@ -68,12 +140,11 @@ def start_room_episodes(run_dir: Path, until: float) -> tuple[int, float]:
     path = run_dir / "episodes.csv"
     if not path.exists():
         return 0, math.nan
-    with open(path) as f:
-        log = [row for row in csv.DictReader(f) if float(row["step"]) <= until]
+    log = [row for row in read_csv(path, EPISODE_COLUMNS) if row["step"] <= until]
     if not log:
         return 0, math.nan
-    starts = np.array([[float(r["start_x"]), float(r["start_y"])] for r in log])
-    success = np.array([float(r["success"]) for r in log])[in_start_room(run_dir, starts)]
+    starts = np.array([[r["start_x"], r["start_y"]] for r in log])
+    success = np.array([r["success"] for r in log])[in_start_room(run_dir, starts)]
     return len(success), float(success.mean()) if len(success) else math.nan
 
 
@@ -83,8 +154,7 @@ def start_room_share(run_dir: Path, until: float) -> float:
     path = run_dir / "start_weights.npz"
     if not path.exists():
         return math.nan
-    with np.load(path) as logged:
-        steps, states, probabilities = logged["steps"], logged["states"], logged["probabilities"]
+    steps, states, probabilities = read_start_weights(path)
     early = steps <= until
     if probabilities.size == 0 or not early.any():
         return math.nan
@@ -100,7 +170,10 @@ def markdown(path: Path, threshold: float = THRESHOLD, start_room_until: float |
              "|---|---:|---:|---:|" + ("---:|---:|" if room else "")]
     summaries, shares, episodes = [], [], []
     for run in run_dirs(path):
-        s = seed_summary(read_metrics(run), threshold)
+        rows = read_metrics(run)
+        if not rows:
+            raise ValueError(f"{run / 'metrics.csv'} holds no evaluation yet: nothing to summarise")
+        s = seed_summary(rows, threshold)
         summaries.append(s)
         first = "never" if math.isnan(s["steps_to_threshold"]) else f"{s['steps_to_threshold']:,.0f}"
         shares.append(start_room_share(run, start_room_until) if room else math.nan)
@@ -129,24 +202,32 @@ def _pooled(episodes: list[tuple[int, float]]) -> str:
     return f"{total} ({_number(sum(count * success for count, success in episodes if count) / total)})"
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m lava_bridge_mj.eval.summary", description=__doc__.splitlines()[0])
     parser.add_argument("dirs", nargs="+", type=Path, help="run directories or directories of them")
-    parser.add_argument("--threshold", type=float, default=THRESHOLD, help="p0 success that counts as solved")
+    parser.add_argument("--threshold", type=float, default=THRESHOLD,
+                        help="p0 success that counts as solved, in [0, 1] (default: %(default)s)")
     parser.add_argument("--start-room", type=float, metavar="STEP", dest="start_room_until",
                         help="add each run's mean start-room share of its start distribution, and its "
                              "start-room training episodes and their success, up to STEP")
     args = parser.parse_args(argv)
-    if args.start_room_until is not None and not args.start_room_until > 0:
+    if not 0 <= args.threshold <= 1:
+        parser.error(f"--threshold must be a success rate in [0, 1], got {args.threshold}")
+    if args.start_room_until is not None and not 0 < args.start_room_until < math.inf:
         parser.error(f"--start-room must be a step > 0, got {args.start_room_until}")
-    for path in args.dirs:
-        if not path.is_dir():
-            parser.error(f"{path} is not a directory")
+    tables = []
+    for path in args.dirs:  # every table first: an error prints one line and no half output
         try:
-            print(markdown(path, args.threshold, args.start_room_until), end="\n\n")
+            if not path.is_dir():
+                raise ValueError(f"{path} is not a directory")
+            tables.append(markdown(path, args.threshold, args.start_room_until))
         except ValueError as error:
-            parser.error(str(error))
+            print(f"{parser.prog}: error: {error}", file=sys.stderr)
+            return 2
+    for table in tables:
+        print(table, end="\n\n")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -5,6 +5,9 @@ worker processes or on a Ray cluster.
     lava-bridge-bench sweep ... --backend ray                           # the same jobs on a local Ray cluster
     lava-bridge-bench sweep ... --backend ray --address HEAD_IP:6379    # ... or on a running one
 
+An --address where no Ray cluster answers within RAY_CONNECT_TIMEOUT (30) seconds is refused before
+anything is written.
+
 Every run is the directory a single `lava-bridge-bench --method M --demos D --seed S` run writes,
 at OUT/M-dD/seedS. A job is a batch of seeds of one (method, demos) trained together in one process
 (`runner.train(config, dirs, seeds=batch)`); with one torch thread per job (the default) a seed's
@@ -23,20 +26,26 @@ configuration is an error of its job, never overwritten. A failing job (a config
 rejects, a foreign run directory, a crash) is reported and the other jobs go on. OUT/sweep.json
 records the arguments and every job's status, error and wall time, rewritten atomically as jobs
 finish; each job's output goes to OUT/logs/JOB.log. Ctrl-C (or SIGTERM) asks every running job to
-write a checkpoint and stop (a second Ctrl-C kills them); the same command then resumes.
+write a checkpoint and stop (a second Ctrl-C kills them); the same command then resumes. A local job
+also stops that way when the sweep's process dies without asking (SIGKILL, a crash): it never trains on
+as an orphan. A rerun that finds a run directory still locked by such a stopping job waits for it (at
+most LOCK_WAIT seconds) instead of failing the job.
 """
 
 from __future__ import annotations
 
 import argparse
+import ctypes
 import dataclasses
 import json
 import math
 import os
 import signal
+import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import traceback
 from collections.abc import Sequence
@@ -52,8 +61,19 @@ DEMO_SETS = (500, 7500)
 SEEDS_PER_JOB = 25
 """Default batch limit: the paper's 25 seeds of one method fit one job."""
 RAY_EXTRA = "pip install 'lava-bridge-mj[ray]'"
-JOB_COMMAND = "import sys; from lava_bridge_mj.eval.sweep import job_main; job_main(sys.argv[1], sys.argv[2])"
-"""How a local worker process is started: python -c JOB_COMMAND SPEC_JSON RESULT_FILE."""
+JOB_COMMAND = ("import sys; from lava_bridge_mj.eval.sweep import job_main; "
+               "job_main(sys.argv[1], sys.argv[2], int(sys.argv[3]))")
+"""How a local worker process is started: python -c JOB_COMMAND SPEC_JSON RESULT_FILE SWEEP_PID."""
+LOCK_WAIT = 60.0
+"""Seconds a sweep waits for run directories still locked by another process (a job of a killed sweep
+writing its last checkpoint) before starting its jobs, which then fail on a directory still in use."""
+PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+RAY_CONNECT_TIMEOUT = 30.0
+"""Seconds `--address` may take to answer before the sweep gives up (ray.init itself retries for many
+minutes against an address where no cluster answers)."""
+RAY_PROBE = "import sys, ray; ray.init(address=sys.argv[1], log_to_driver=False); ray.shutdown()"
+MAX_SEEDS = 1000
+"""Most seeds one --seeds list may name: a typo such as 0-99999999 is refused instead of planning for hours."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -127,6 +147,43 @@ def _foreign_error(config: RunConfig, directory: Path) -> str:
                     if k != "steps" and (not isinstance(existing, dict) or existing.get(k) != v))
     return (f"{directory} holds a run with another configuration (differs in {', '.join(differ)}); not "
             "overwriting it: move it away or sweep into another --out")
+
+
+def _writer(directory: Path) -> str | None:
+    """The pid (as the runner recorded it, or '?') of the process holding `directory`'s run lock; None
+    when no process holds it. Only tests the lock (a shared one, released at once); creates nothing."""
+    import fcntl
+
+    try:
+        lock = open(directory / ".lock")
+    except OSError:  # no lock file (nothing ever trained there) or unreadable: the trainer decides
+        return None
+    with lock:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return lock.read().strip() or "?"
+        except OSError:
+            return None
+        fcntl.flock(lock, fcntl.LOCK_UN)
+    return None
+
+
+def wait_for_writers(directories: Sequence[Path], timeout: float, poll: float = 0.2) -> dict[Path, str]:
+    """Wait until no other process holds a lock on any of `directories` (a job of a killed sweep still
+    writing its last checkpoint), at most `timeout` seconds, saying so once; returns the directories
+    still locked then (their pids), {} when none is."""
+    busy = {d: pid for d in directories if (pid := _writer(d)) is not None}
+    if not busy:
+        return {}
+    pids = ", ".join(sorted(set(busy.values())))
+    print(f"sweep: {len(busy)} run director{'y is' if len(busy) == 1 else 'ies are'} still being written by "
+          f"another process (pid {pids}); waiting up to {timeout:g} s for it to stop", file=sys.stderr, flush=True)
+    deadline = time.monotonic() + timeout
+    while busy and time.monotonic() < deadline:
+        time.sleep(poll)
+        busy = {d: pid for d in busy if (pid := _writer(d)) is not None}
+    return busy
 
 
 def _checkpoint_step(directory: Path):
@@ -207,9 +264,48 @@ def _run_spec(spec: dict) -> dict:
                    spec["threads"])
 
 
-def job_main(spec_json: str, result_file: str) -> None:
-    """A local worker process: run one job, write its result (JSON) to `result_file`."""
+def job_main(spec_json: str, result_file: str, sweep_pid: int | None = None) -> None:
+    """A local worker process: run one job, write its result (JSON) to `result_file`. With
+    `sweep_pid`, the job stops (checkpoint first) when that process, its parent, dies."""
+    if sweep_pid is not None:
+        die_with_parent(sweep_pid)
     atomic_write_text(result_file, json.dumps(_run_spec(json.loads(spec_json))))
+
+
+def die_with_parent(parent_pid: int, poll_interval: float = 1.0, use_prctl: bool = True) -> None:
+    """Send this process one SIGTERM when its parent `parent_pid` dies, so that a job whose sweep was
+    killed writes a checkpoint and stops instead of training on unseen (its own process session shields
+    it from the terminal's signals). Linux: the kernel's parent-death signal (prctl PR_SET_PDEATHSIG);
+    elsewhere, or if that fails, a daemon thread that polls os.getppid() every `poll_interval` s.
+
+    The kernel's signal is SIGHUP, turned into a single SIGTERM here: it is sent again each time the
+    orphan is handed on (from the dying parent's forking thread to its other threads, then to a
+    subreaper), and a second SIGTERM would make the trainer stop without its checkpoint."""
+    stopped = threading.Event()
+
+    def stop(*_) -> None:
+        if not stopped.is_set():
+            stopped.set()
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    armed = False
+    if use_prctl and sys.platform.startswith("linux"):
+        signal.signal(signal.SIGHUP, stop)
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            armed = libc.prctl(PR_SET_PDEATHSIG, signal.SIGHUP, 0, 0, 0) == 0
+        except (OSError, AttributeError):
+            armed = False
+    if os.getppid() != parent_pid:  # the parent died before the signal was armed: nothing would send it
+        stop()
+        return
+    if not armed:
+        def watch() -> None:
+            while os.getppid() == parent_pid:
+                time.sleep(poll_interval)
+            stop()
+
+        threading.Thread(target=watch, name="die-with-parent", daemon=True).start()
 
 
 def _ray_job(spec: dict, log: str) -> dict:
@@ -245,10 +341,20 @@ class SweepRecord:
         self.jobs[index].update(fields)
         self.write()
 
-    def write(self) -> None:
+    def write(self, strict: bool = False) -> None:
+        """Rewrite the record; an OSError (disk full, ...) is raised if `strict`, else reported in one
+        line, once per kind of error: the jobs go on, and their run directories hold what they did."""
         record = {"arguments": self.arguments, "started_at": self.started_at, "status": self.status,
                   "wall_time": round(time.perf_counter() - self.start, 2), "jobs": self.jobs}
-        atomic_write_text(self.path, json.dumps(record, indent=2) + "\n")
+        try:
+            atomic_write_text(self.path, json.dumps(record, indent=2) + "\n")
+        except OSError as error:
+            if strict:
+                raise
+            if error.strerror != getattr(self, "_reported", None):
+                self._reported = error.strerror
+                print(f"sweep: warning: cannot write {self.path} ({error.strerror or error}); the jobs go on and "
+                      "their run directories hold their results", file=sys.stderr, flush=True)
 
 
 # --- backends: each runs `todo` (indices into the record's jobs, with their specs) and records results --
@@ -264,39 +370,47 @@ def run_local(todo: list[tuple[int, dict]], record: SweepRecord, workers: int) -
                     index, spec = queue.pop(0)
                     result_file = Path(results) / f"job{index}.json"
                     log = Path(record.jobs[index]["log"])
-                    with open(log, "ab") as stream:  # the child holds its own descriptor
-                        stream.write(f"--- {datetime.now().isoformat(timespec='seconds')}: "
-                                     f"{record.jobs[index]['job']}\n".encode())
-                        stream.flush()
-                        # its own session: a terminal's Ctrl-C reaches only this process, which
-                        # forwards exactly one SIGTERM (a second one would skip the checkpoint)
-                        process = subprocess.Popen([sys.executable, "-c", JOB_COMMAND, json.dumps(spec),
-                                                    str(result_file)], env=env, stdout=stream,
-                                                   stderr=subprocess.STDOUT, start_new_session=True)
-                    running[index] = (process, result_file)
+                    try:
+                        with open(log, "ab") as stream:  # the child holds its own descriptor
+                            stream.write(f"--- {datetime.now().isoformat(timespec='seconds')}: "
+                                         f"{record.jobs[index]['job']}\n".encode())
+                            stream.flush()
+                            # its own session: a terminal's Ctrl-C reaches only this process, which
+                            # forwards exactly one SIGTERM (a second one would skip the checkpoint); the
+                            # job gets SIGTERM too if this process dies (die_with_parent)
+                            process = subprocess.Popen([sys.executable, "-c", JOB_COMMAND, json.dumps(spec),
+                                                        str(result_file), str(os.getpid())], env=env,
+                                                       stdout=stream, stderr=subprocess.STDOUT,
+                                                       start_new_session=True)
+                    except OSError as error:  # the log cannot be written (disk full, ...), no process
+                        record.update(index, status="failed", error=f"cannot start the job with its log in {log}: "
+                                                                    f"{error.strerror or error}")
+                        _print_finished(record.jobs[index])
+                        continue
+                    running[index] = (process, result_file, spec)
                     record.update(index, status="running")
                     print(f"started {record.jobs[index]['job']} (pid {process.pid})", flush=True)
-                for index in [i for i, (process, _) in running.items() if process.poll() is not None]:
+                for index in [i for i, (process, *_) in running.items() if process.poll() is not None]:
                     _finish(record, index, *running.pop(index))
                 time.sleep(0.1)
         except KeyboardInterrupt:
             print(f"stopping {len(running)} running job(s): each writes a checkpoint first "
                   "(Ctrl-C again to kill them at once)", file=sys.stderr, flush=True)
-            for process, _ in running.values():
+            for process, *_ in running.values():
                 process.send_signal(signal.SIGTERM)
             try:
-                for process, _ in running.values():
+                for process, *_ in running.values():
                     process.wait()
             except KeyboardInterrupt:
-                for process, _ in running.values():
+                for process, *_ in running.values():
                     process.kill()
                     process.wait()
-            for index, (process, result_file) in running.items():
-                _finish(record, index, process, result_file, stopped=True)
+            for index, (process, result_file, spec) in running.items():
+                _finish(record, index, process, result_file, spec, stopped=True)
             raise
 
 
-def _finish(record: SweepRecord, index: int, process: subprocess.Popen, result_file: Path,
+def _finish(record: SweepRecord, index: int, process: subprocess.Popen, result_file: Path, spec: dict,
             stopped: bool = False) -> None:
     if result_file.exists():
         result = json.loads(result_file.read_text())
@@ -304,11 +418,29 @@ def _finish(record: SweepRecord, index: int, process: subprocess.Popen, result_f
         log = Path(record.jobs[index]["log"])
         lines = log.read_text(errors="replace").strip().splitlines() if log.exists() else []
         last = f": {lines[-1]}" if lines else ""
-        result = {"status": "interrupted" if stopped else "failed",
-                  "error": f"the job's process exited with code {process.returncode} and no result{last} "
-                           f"(see {log})"}
+        result = _without_result(spec, "interrupted" if stopped else "failed",
+                                 f"the job's process exited with code {process.returncode} and no result{last} "
+                                 f"(see {log})")
     record.update(index, **result)
     _print_finished(record.jobs[index])
+
+
+def _without_result(spec: dict, status: str, error: str) -> dict:
+    """The record of a job that ended without reporting: `status` with `error`, unless every one of
+    its runs is finished (it was stopped after its last write), which makes it done."""
+    if _all_finished(spec):
+        return {"status": "done", "error": None}
+    return {"status": status, "error": error}
+
+
+def _all_finished(spec: dict) -> bool:
+    try:
+        config = RunConfig.from_dict(spec["config"], source="the sweep")
+    except ValueError:
+        return False
+    job = Job(spec["method"], spec["demos"], tuple(spec["seeds"]))
+    return all(seed_status(dataclasses.replace(config, seed=seed), directory) == "finished"
+               for seed, directory in zip(job.seeds, job.run_dirs(Path(spec["out"]))))
 
 
 def run_ray(todo: list[tuple[int, dict]], record: SweepRecord) -> None:
@@ -317,6 +449,7 @@ def run_ray(todo: list[tuple[int, dict]], record: SweepRecord) -> None:
     import ray
 
     task = ray.remote(max_retries=0)(_ray_job)  # a failure is reported, not repeated
+    specs = dict(todo)
     refs = {task.options(num_cpus=spec["threads"]).remote(spec, record.jobs[index]["log"]): index
             for index, spec in todo}
     for index, _ in todo:
@@ -325,17 +458,18 @@ def run_ray(todo: list[tuple[int, dict]], record: SweepRecord) -> None:
         while refs:
             done, _ = ray.wait(list(refs), num_returns=1)
             for ref in done:
-                _collect_ray(record, refs.pop(ref), ref)
+                index = refs.pop(ref)
+                _collect_ray(record, index, ref, specs[index])
     except KeyboardInterrupt:
         print(f"cancelling {len(refs)} job(s): running ones write a checkpoint first", file=sys.stderr, flush=True)
         for ref in refs:
             ray.cancel(ref)
         for ref, index in refs.items():
-            _collect_ray(record, index, ref, stopped=True)
+            _collect_ray(record, index, ref, specs[index], stopped=True)
         raise
 
 
-def _collect_ray(record: SweepRecord, index: int, ref, stopped: bool = False) -> None:
+def _collect_ray(record: SweepRecord, index: int, ref, spec: dict, stopped: bool = False) -> None:
     import ray
 
     try:
@@ -343,7 +477,7 @@ def _collect_ray(record: SweepRecord, index: int, ref, stopped: bool = False) ->
     except ray.exceptions.TaskCancelledError:
         result = {"status": "pending" if record.jobs[index]["status"] == "submitted" else "interrupted"}
     except Exception as error:  # noqa: BLE001 - the worker died, the node was lost, ...
-        result = {"status": "interrupted" if stopped else "failed", "error": f"{type(error).__name__}: {error}"}
+        result = _without_result(spec, "interrupted" if stopped else "failed", f"{type(error).__name__}: {error}")
     record.update(index, **result)
     _print_finished(record.jobs[index])
 
@@ -373,6 +507,54 @@ def summary(record: SweepRecord) -> str:
 
 
 # --- the command -------------------------------------------------------------------------------------
+def seed_list(text: str) -> list[int]:
+    """An argparse type: parse_seeds' list ('0-24', '0,3,5-7'), refused beyond MAX_SEEDS seeds before
+    it is built."""
+    count = 0
+    for part in text.split(","):
+        low, dash, high = part.strip().partition("-")
+        try:
+            count += int(high) - int(low) + 1 if dash else 1
+        except ValueError:
+            break  # parse_seeds names the malformed part
+    if count > MAX_SEEDS:
+        raise argparse.ArgumentTypeError(f"expected at most {MAX_SEEDS:,} seeds, got {count:,} in {text!r}")
+    return parse_seeds(text)
+
+
+def ray_unreachable(address: str, timeout: float = RAY_CONNECT_TIMEOUT) -> str | None:
+    """Why no Ray cluster can be used at `address` (one line), or None when one answers within
+    `timeout` seconds. A host:port that refuses TCP connections is named at once; otherwise ray.init is
+    tried in a child process, killed if it has not connected by then."""
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    if host and port.isdigit():
+        try:
+            socket.create_connection((host.strip("[]"), int(port)), timeout=min(timeout, 10.0)).close()
+        except OSError as error:
+            return f"nothing accepts connections at {host}:{port} ({error.strerror or error})"
+    try:
+        probe = subprocess.run([sys.executable, "-c", RAY_PROBE, address], capture_output=True, text=True,
+                               timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return f"no Ray cluster answered within {timeout:g} s"
+    if probe.returncode != 0:
+        return _last_line(probe.stderr) or f"ray.init exited with code {probe.returncode}"
+    return None
+
+
+def _last_line(text: str) -> str:
+    """The last non-empty line of `text` (an exception's own last line says what went wrong), cut to 300
+    characters: error messages stay one line."""
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    return lines[-1][:300] if lines else ""
+
+
+def _error(message: str) -> int:
+    """An environment failure (not a usage error): one line, exit code 2."""
+    print(f"lava-bridge-bench sweep: error: {message}", file=sys.stderr, flush=True)
+    return 2
+
+
 def _choices(kind: str, allowed: Sequence, convert=str):
     """An argparse type: a comma-separated list of distinct values from `allowed`."""
     def parse(text: str) -> list:
@@ -402,7 +584,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "unfinished ones; OUT/sweep.json records every job's status.")
     parser.add_argument("--methods", required=True, type=_choices("method", METHODS), metavar="LIST",
                         help=f"comma-separated methods, some of {', '.join(METHODS)}")
-    parser.add_argument("--seeds", required=True, type=parse_seeds, metavar="LIST", help="e.g. 0-24 or 0,3,5-7")
+    parser.add_argument("--seeds", required=True, type=seed_list, metavar="LIST",
+                        help=f"e.g. 0-24 or 0,3,5-7 (at most {MAX_SEEDS:,})")
     parser.add_argument("--demos", type=_choices("demo set", DEMO_SETS, int), default=[defaults.demos],
                         metavar="LIST", help=f"comma-separated shipped demo sets, 500 and/or 7500 (default: "
                                              f"{defaults.demos})")
@@ -463,16 +646,29 @@ def main(argv: list[str] | None = None) -> int:
     if not configs:  # wrong for every method: a usage error, not a sweep of failures
         parser.error(next(iter(rejected.values())))
 
+    if args.backend == "local" and args.threads > _local_cpus():
+        parser.error(f"--threads {args.threads}: this machine lets the sweep use {_local_cpus()} CPUs")
     if args.backend == "ray":
         env = {"env_vars": worker_environment(args.threads)}
-        if args.address is None:
-            workers = args.workers or _local_cpus()
-            ray.init(num_cpus=workers * args.threads, include_dashboard=False, runtime_env=env)
-        else:
-            try:
+        if args.address is not None:
+            reason = ray_unreachable(args.address)
+            if reason is not None:
+                return _error(f"--address {args.address}: cannot connect to a Ray cluster: {reason}")
+        try:
+            if args.address is None:
+                workers = args.workers or _local_cpus()
+                ray.init(num_cpus=workers * args.threads, include_dashboard=False, runtime_env=env)
+            else:
                 ray.init(address=args.address, runtime_env=env)
-            except Exception as error:  # noqa: BLE001 - ConnectionError, a bad address, a version mismatch, ...
-                parser.error(f"--address {args.address}: cannot connect to Ray ({type(error).__name__}: {error})")
+        except Exception as error:  # noqa: BLE001 - ConnectionError, a bad address, a version mismatch, ...
+            where = f"--address {args.address}: cannot connect to Ray" if args.address else "cannot start a local Ray"
+            return _error(f"{where} ({type(error).__name__}: {_last_line(str(error))})")
+        if args.address is not None:
+            largest = max((node["Resources"].get("CPU", 0) for node in ray.nodes() if node.get("Alive")), default=0)
+            if args.threads > largest:
+                ray.shutdown()
+                return _error(f"--threads {args.threads}: no node of the Ray cluster at {args.address} has that many "
+                              f"CPUs (the most: {largest:g}); its tasks would wait forever")
             workers = args.workers or max(1, int(ray.cluster_resources().get("CPU", 1) // args.threads))
     else:
         workers = args.workers or _local_cpus()
@@ -486,12 +682,21 @@ def main(argv: list[str] | None = None) -> int:
 def _sweep(args: argparse.Namespace, argv, workers: int, configs: dict, rejected: dict) -> int:
     out = args.out
     jobs = plan(args.methods, args.demos, args.seeds, workers, args.seeds_per_job)
-    (out / "logs").mkdir(parents=True, exist_ok=True)
+    try:
+        (out / "logs").mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        return _error(f"--out {out}: cannot create {error.filename or out / 'logs'} ({error.strerror or error})")
     arguments = {"argv": list(sys.argv[1:] if argv is None else argv), "methods": args.methods,
                  "seeds": args.seeds, "demos": args.demos, "steps": args.steps, "eval_every": args.eval_every,
                  "eval_episodes": args.eval_episodes, "config": str(args.config) if args.config else None,
                  "out": str(out), "workers": workers, "seeds_per_job": args.seeds_per_job,
                  "threads": args.threads, "backend": args.backend, "address": args.address}
+    # a job of a sweep killed just before may still be writing its last checkpoint: what its runs
+    # hold is known only once it has stopped
+    still_busy = wait_for_writers([d for job in jobs for d in job.run_dirs(out)], LOCK_WAIT)
+    if still_busy:
+        print(f"sweep: still being written after {LOCK_WAIT:g} s: {', '.join(map(str, still_busy))}; their jobs "
+              "will fail (is another sweep running into this --out?)", file=sys.stderr, flush=True)
     record = SweepRecord(out, arguments, jobs)
     todo = []
     for index, job in enumerate(jobs):
@@ -505,7 +710,10 @@ def _sweep(args: argparse.Namespace, argv, workers: int, configs: dict, rejected
             record.jobs[index].update(status="skipped", skipped=list(job.seeds))
             continue
         todo.append((index, _spec(job, config, out, args.threads)))
-    record.write()
+    try:
+        record.write(strict=True)
+    except OSError as error:
+        return _error(f"cannot write {record.path} ({error.strerror or error}); no job started")
     print(f"sweep: {len(jobs)} jobs, {sum(len(job.seeds) for job in jobs)} runs; {len(todo)} jobs to run on "
           f"{args.backend} with {workers} worker(s) x {args.threads} torch thread(s)", flush=True)
 

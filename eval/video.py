@@ -9,7 +9,11 @@ A run's policy is rebuilt from its config.json (the method's actor and its sizes
 step_N` reads the snapshot policies/step_N.pt. It acts deterministically (the Gaussian's mean, as in
 evaluation), in the run's own env settings, from p0 and then from ood, `--episodes` episodes each,
 episode i starting from `reset(seed=SEED + i)`. A run directory that is missing, lacks config.json or
-lacks the chosen policy is refused with one error line and exit code 2, before anything is written.
+lacks the chosen policy is refused with one error line and exit code 2, before anything is written;
+so are an --out or --still that cannot be written (wrong suffix, a file where a directory must be,
+a read-only directory), before anything is rendered. The video is written to a temporary name and
+renamed when complete (the still with it): a failure while writing (a full disk) or an interruption
+leaves nothing behind and replaces nothing.
 
 Rendering goes through the env's `render_mode="rgb_array"` (mujoco.Renderer, EGL or OSMesa);
 the trail and the start marker are extra geoms added to the scene before each frame is drawn.
@@ -18,9 +22,14 @@ the trail and the start marker are extra geoms added to the scene before each fr
 from __future__ import annotations
 
 import argparse
+import io
 import json
+import os
 import re
+import signal
 import sys
+import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Callable
 
@@ -28,6 +37,10 @@ import imageio.v2 as imageio
 import mujoco
 import numpy as np
 
+VIDEO_SUFFIXES = (".mp4",)
+STILL_SUFFIXES = (".png", ".jpg", ".jpeg")
+MAX_EPISODES = 100
+"""Most episodes per start distribution: 100 x 2 starts x up to 501 frames is hours of video already."""
 TRAIL_RGBA = np.array([0.1, 0.2, 0.9, 0.9], dtype=np.float32)
 START_RGBA = np.array([1.0, 0.85, 0.0, 1.0], dtype=np.float32)
 
@@ -58,32 +71,106 @@ def record_rollouts(env, policy: Callable[[np.ndarray], np.ndarray], path: str |
                     seed: int = 0, fps: int | None = None, still: str | Path | None = None) -> dict:
     """Roll `policy` out from each named start distribution and write one mp4 to `path`.
 
-    Returns per-start success counts. `still`, if given, receives the last frame as an image.
-    The file is written to a temporary name and renamed when
-    complete, so an interrupted call never leaves a truncated video under `path`.
+    Returns per-start success counts. `still`, if given, receives the last frame as an image (PNG or
+    JPEG by its suffix). The video is written to a temporary name and renamed when complete, the
+    still just before, so an interrupted or failed call never leaves a truncated video under `path`,
+    nor a still without its video. A failure while writing (a full disk) is an OSError naming the
+    file, with ffmpeg's own reason where it gave one.
     """
+    from lava_bridge_mj.eval.atomic import atomic_write
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.stem + ".partial" + path.suffix)
+    if still is not None:
+        Path(still).parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.stem}.partial{os.getpid()}{path.suffix}")
     fps = fps or env.metadata.get("render_fps", 10)
     successes = {start: 0 for start in starts}
-    with imageio.get_writer(tmp, fps=fps) as writer:
-        for start in starts:
-            for episode in range(episodes_per_start):
-                obs, _ = env.reset(seed=seed + episode, options={"start": start})
-                trail = [obs[:2].copy()]
-                writer.append_data(render_frame(env, trail))
-                done = False
-                while not done:
-                    obs, _, terminated, truncated, info = env.step(policy(obs))
-                    trail.append(obs[:2].copy())
-                    writer.append_data(render_frame(env, trail))
-                    done = terminated or truncated
-                successes[start] += bool(info["is_success"])
-    tmp.replace(path)
-    if still is not None:
-        imageio.imwrite(still, render_frame(env, trail))
+    try:
+        with tempfile.TemporaryFile() as ffmpeg_log:
+            # log level "error": ffmpeg prints only when something went wrong, and into ffmpeg_log
+            with imageio.get_writer(tmp, fps=fps, ffmpeg_log_level="error") as writer:
+                started = False
+
+                def append(frame: np.ndarray) -> None:
+                    nonlocal started
+                    try:
+                        if started:
+                            writer.append_data(frame)
+                            return
+                        with _stderr_into(ffmpeg_log):  # the first frame starts ffmpeg, which inherits it
+                            writer.append_data(frame)
+                        started = True
+                    except (OSError, RuntimeError) as error:  # ffmpeg stopped reading: its log says why
+                        reason = _ffmpeg_reason(ffmpeg_log) or f"ffmpeg stopped writing it ({error})".splitlines()[0]
+                        raise OSError(getattr(error, "errno", None), reason, str(path)) from None
+
+                for start in starts:
+                    for episode in range(episodes_per_start):
+                        obs, _ = env.reset(seed=seed + episode, options={"start": start})
+                        trail = [obs[:2].copy()]
+                        append(render_frame(env, trail))
+                        done = False
+                        while not done:
+                            obs, _, terminated, truncated, info = env.step(policy(obs))
+                            trail.append(obs[:2].copy())
+                            append(render_frame(env, trail))
+                            done = terminated or truncated
+                        successes[start] += bool(info["is_success"])
+            reason = _ffmpeg_reason(ffmpeg_log)  # imageio does not check how ffmpeg ended
+            if reason:
+                raise OSError(None, reason, str(path))
+        if still is not None:
+            image = io.BytesIO()
+            imageio.imwrite(image, render_frame(env, trail), format=Path(still).suffix.lstrip(".").lower())
+            atomic_write(still, lambda f: f.write(image.getvalue()))
+        tmp.replace(path)
+    finally:
+        try:
+            tmp.unlink(missing_ok=True)
+        except OSError:  # not ours to remove (a directory of that name)
+            pass
     return successes
+
+
+@contextmanager
+def _stderr_into(file):
+    """File descriptor 2 points to `file` for the block: a child process started in it (ffmpeg) keeps
+    writing its messages there."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        os.dup2(file.fileno(), 2)
+        yield
+    finally:
+        sys.stderr.flush()
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+def _ffmpeg_reason(log) -> str:
+    """ffmpeg's last message in `log` (at level "error": there is one only if it failed)."""
+    log.seek(0)
+    lines = [line.strip() for line in log.read().decode(errors="replace").splitlines() if line.strip()]
+    return lines[-1] if lines else ""
+
+
+def output_problem(path: Path, option: str, suffixes: tuple[str, ...]) -> str | None:
+    """Why `path` cannot be written as `option`'s file (wrong suffix, a directory, under a file, in a
+    read-only directory), or None. Missing directories are fine: they are made."""
+    if path.suffix.lower() not in suffixes:
+        names = " or ".join([", ".join(suffixes[:-1]), suffixes[-1]] if len(suffixes) > 1 else suffixes)
+        return f"{option} {path}: expected a file name ending in {names}"
+    if path.is_dir():
+        return f"{option} {path} is a directory"
+    existing = path.parent
+    while not existing.exists():  # the nearest existing ancestor is where directories will be made
+        existing = existing.parent
+    if not existing.is_dir():
+        return f"{option} {path}: {existing} is a file, not a directory"
+    if not os.access(existing, os.W_OK | os.X_OK):
+        return f"{option} {path}: {existing} is not a writable directory"
+    return None
 
 
 POLICY_SPEC = re.compile(r"final|step_(\d+)")
@@ -143,6 +230,7 @@ def main(argv: list[str] | None = None) -> int:
     import gymnasium
 
     import lava_bridge_mj
+    from lava_bridge_mj.eval.cli import _seed
 
     parser = argparse.ArgumentParser(
         prog="lava-bridge-bench video",
@@ -154,43 +242,71 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--policy", default="final", help="final (final.pt, or the latest checkpoint.pt of an "
                         "unfinished run) or step_N (policies/step_N.pt) (default: %(default)s)")
     parser.add_argument("--episodes", type=int, default=2,
-                        help="episodes per start distribution (default: %(default)s)")
+                        help=f"episodes per start distribution, 1-{MAX_EPISODES} (default: %(default)s)")
     parser.add_argument("--max-steps", type=int, default=lava_bridge_mj.MAX_EPISODE_STEPS,
                         help="cut each episode after this many steps (default: %(default)s, the env's limit)")
-    parser.add_argument("--seed", type=int, default=0, help="episode i starts from reset(seed=SEED + i)")
-    parser.add_argument("--out", type=Path, default=None, help="video file to write (default: RUN_DIR/rollouts.mp4, "
-                        "RUN_DIR/rollouts_step_N.mp4 for --policy step_N, runs/expert.mp4 with --expert)")
-    parser.add_argument("--still", default=None, help="also write the last frame as a PNG here")
+    parser.add_argument("--seed", type=_seed, default=0, help="episode i starts from reset(seed=SEED + i)")
+    parser.add_argument("--out", type=Path, default=None, help="video file to write, .mp4 (default: "
+                        "RUN_DIR/rollouts.mp4, RUN_DIR/rollouts_step_N.mp4 for --policy step_N, runs/expert.mp4 "
+                        "with --expert)")
+    parser.add_argument("--still", type=Path, default=None, help="also write the last frame here, .png or .jpg")
     args = parser.parse_args(argv)
     if args.expert == (args.run_dir is not None):
         parser.error("give either RUN_DIR or --expert")
-    for name in ("episodes", "max_steps"):
-        if getattr(args, name) < 1:
-            parser.error(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
+    for name, most in (("episodes", MAX_EPISODES), ("max_steps", lava_bridge_mj.MAX_EPISODE_STEPS)):
+        if not 1 <= getattr(args, name) <= most:
+            parser.error(f"--{name.replace('_', '-')} must be in 1-{most}, got {getattr(args, name)}")
+
+    def error(message: str, code: int = 2) -> int:
+        print(f"lava-bridge-bench video: error: {message}", file=sys.stderr)
+        return code
+
     env_kwargs: dict = {}
     if args.expert:
         out = args.out or Path("runs/expert.mp4")
+    else:
+        name = "rollouts.mp4" if args.policy == "final" else f"rollouts_{args.policy}.mp4"
+        out = args.out or args.run_dir / name
+    problems = [output_problem(out, "--out", VIDEO_SUFFIXES),
+                output_problem(args.still, "--still", STILL_SUFFIXES) if args.still is not None else None]
+    if any(problems):
+        return error(next(problem for problem in problems if problem))
+    if args.expert:
         policy, what = None, "expert"
     else:
         try:
             policy, config, what = load_policy(args.run_dir, args.policy)
-        except ValueError as error:
-            print(f"lava-bridge-bench video: error: {error}", file=sys.stderr)
-            return 2
+        except ValueError as problem:
+            return error(str(problem))
         env_kwargs = config.env
-        name = "rollouts.mp4" if args.policy == "final" else f"rollouts_{args.policy}.mp4"
-        out = args.out or args.run_dir / name
+    previous = signal.signal(signal.SIGTERM, _interrupt) if _in_main_thread() else None
     env = gymnasium.make(lava_bridge_mj.ENV_ID, render_mode="rgb_array", max_episode_steps=args.max_steps,
                          **env_kwargs)
     try:
         policy = policy or lava_bridge_mj.ScriptedExpert(env).act
         successes = record_rollouts(env, policy, out, episodes_per_start=args.episodes, seed=args.seed,
                                     still=args.still)
+    except OSError as problem:  # a full disk, a directory that turned read-only, ...
+        return error(f"cannot write {problem.filename or out}: {problem.strerror or problem}; nothing written")
+    except KeyboardInterrupt:
+        return error("interrupted; nothing written", code=130)
     finally:
         env.close()
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     summary = ", ".join(f"{start} {n}/{args.episodes}" for start, n in successes.items())
-    print(f"wrote {out}: {what}; successes {summary}")
+    print(f"wrote {out}: {what}" + (f" and {args.still}" if args.still is not None else "") + f"; successes {summary}")
     return 0
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def _in_main_thread() -> bool:
+    import threading
+
+    return threading.current_thread() is threading.main_thread()
 
 
 if __name__ == "__main__":

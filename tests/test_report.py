@@ -4,10 +4,12 @@ synthetic run directories, and the report command's figures and Markdown."""
 import csv
 import json
 import math
+import os
 import re
 import subprocess
 import sys
 from dataclasses import astuple
+from pathlib import Path
 
 import imageio.v2 as imageio
 import numpy as np
@@ -435,3 +437,139 @@ def test_findings_compare_online_methods_up_to_the_step_all_of_them_have(tmp_pat
     assert findings.common_step(groups) == 3000
     assert found[4].verdict == "partly"  # at step 3,000 Omega-SS's ood equals AuxSS's: not behind
     assert "IQM success from ood at the last: Omega-SS 0.50, AuxSS 0.50" in found[4].measured
+
+
+# --- damaged inputs and outputs that cannot be written ---------------------------------------------
+def two_auxss_runs(root):
+    """Two AuxSS seeds that both reach 0.8 (seed 0 first) with start weights, and a report of them."""
+    for seed in (0, 1):
+        write_run(root / f"seed{seed}", seed=seed, p0=[0.0, 0.9, 1.0], weights=True)
+
+
+@pytest.mark.parametrize("damage", ["truncated", "not a zip", "shapes"])
+def test_a_damaged_start_weights_file_is_skipped_with_one_warning(tmp_path, capsys, damage):
+    """The maze figure takes the next run's start weights; the damaged file is named on stderr and in
+    report.md; the run's curves still count (its metrics are intact)."""
+    two_auxss_runs(tmp_path / "runs")
+    weights = tmp_path / "runs" / "seed0" / "start_weights.npz"
+    if damage == "truncated":
+        weights.write_bytes(weights.read_bytes()[:200])
+    elif damage == "not a zip":
+        weights.write_bytes(b"\x80\x04garbage")
+    else:
+        np.savez(weights, steps=np.array([1000]), states=np.zeros((5, 4)), probabilities=np.ones((2, 5)))
+    assert report.main([str(tmp_path / "runs"), "--reps", "50", "--out", str(tmp_path / "out")]) == 0
+    out, err = capsys.readouterr()
+    assert len(err.strip().splitlines()) == 1 and err.startswith("lava-bridge-bench report: warning: ")
+    assert str(weights) in err and "move it aside or restore it" in err
+    text = (tmp_path / "out" / "report.md").read_text()
+    assert f"*Skipped: {weights}" in text and f"evaluations of `{tmp_path / 'runs' / 'seed1'}` (seed 1)" in text
+    assert "| auxss (0.5K) | 2: 0, 1 |" in text
+
+
+def fail_on_write(monkeypatch, name, error):
+    """Make the atomic write of file `name` raise `error` after writing half of it, as a full disk does."""
+    from lava_bridge_mj.eval import atomic
+
+    real = atomic.atomic_write
+
+    def write(path, writer):
+        if Path(path).name == name:
+            def half(f):
+                f.write(b"partial")
+                raise error
+            return real(path, half)
+        return real(path, writer)
+
+    monkeypatch.setattr(atomic, "atomic_write", write)
+
+
+@pytest.mark.parametrize("name", ["benchmark.png", "start_distributions.pdf", "report.md"])  # first, middle, last
+def test_a_full_disk_leaves_the_previous_report_as_it_was(tmp_path, capsys, monkeypatch, name):
+    import errno
+
+    two_auxss_runs(tmp_path / "runs")
+    out = tmp_path / "out"
+    argv = [str(tmp_path / "runs"), "--reps", "50", "--out", str(out)]
+    assert report.main(argv) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    write_run(tmp_path / "runs" / "seed2", seed=2, p0=[0.0, 0.2, 0.3])  # the next report differs
+    capsys.readouterr()
+    fail_on_write(monkeypatch, name, OSError(errno.ENOSPC, "No space left on device"))
+    assert report.main(argv) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert err.startswith(f"lava-bridge-bench report: error: cannot write the report into {out}: No space left on "
+                          f"device (") and f"{out} is left as it was" in err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before  # nothing new, nothing half-written
+
+
+def test_a_report_that_cannot_be_written_anywhere_leaves_nothing(tmp_path, capsys, monkeypatch):
+    two_auxss_runs(tmp_path / "runs")
+    fail_on_write(monkeypatch, "benchmark.png", PermissionError(13, "Permission denied"))
+    out = tmp_path / "new" / "report"
+    assert report.main([str(tmp_path / "runs"), "--reps", "50", "--out", str(out)]) == 2
+    assert "Permission denied" in capsys.readouterr().err
+    assert not (tmp_path / "new").exists()  # the directories it made are gone again
+
+
+@pytest.mark.parametrize("out, message", [
+    ("/proc/lava-bridge-report", "/proc/lava-bridge-report"),  # refused even to root
+    ("runs/seed0/metrics.csv/report", "is not a directory"),
+    ("runs/seed0/metrics.csv", "exists and is not a directory"),
+])
+def test_an_out_that_cannot_be_a_directory_is_one_line(tmp_path, capsys, monkeypatch, out, message):
+    two_auxss_runs(tmp_path / "runs")
+    monkeypatch.chdir(tmp_path)
+    before = sorted(p.name for p in tmp_path.rglob("*"))
+    assert report.main(["runs", "--reps", "50", "--out", out]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and err.startswith("lava-bridge-bench report: error: ")
+    assert message in err
+    assert sorted(p.name for p in tmp_path.rglob("*")) == before
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only directories")
+def test_a_read_only_run_directory_is_one_line(tmp_path, capsys):
+    two_auxss_runs(tmp_path / "runs")
+    (tmp_path / "runs").chmod(0o555)
+    try:
+        assert report.main([str(tmp_path / "runs"), "--reps", "50"]) == 2
+    finally:
+        (tmp_path / "runs").chmod(0o755)
+    err = capsys.readouterr().err
+    assert err == (f"lava-bridge-bench report: error: --out {tmp_path / 'runs' / 'report'} cannot be made: "
+                   f"{tmp_path / 'runs'} is not a writable directory\n")
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"seed": "abc"}, "seed must be an integer, got 'abc'"),
+    ({"demos": None}, "demos must be an integer, got None"),
+    ({"method": 5}, "method must be a name, got 5"),
+    ({"env": {"bridge_length": "long"}}, "its env settings make no maze"),
+    ({"env": [1, 2]}, "its env settings make no maze"),
+])
+def test_a_config_the_report_cannot_use_is_one_line_naming_it(tmp_path, capsys, change, message):
+    two_auxss_runs(tmp_path / "runs")
+    for seed in (1, 0):  # the maze is drawn from one of them, in the env settings of its run
+        config = tmp_path / "runs" / f"seed{seed}" / "config.json"
+        config.write_text(json.dumps({**json.loads(config.read_text()), **change}))
+    assert report.main([str(tmp_path / "runs"), "--reps", "50", "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "config.json" in err and message in err, err
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_interrupted_report_leaves_out_as_it_was(tmp_path, capsys, monkeypatch):
+    two_auxss_runs(tmp_path / "runs")
+    fail_on_write(monkeypatch, "maze.png", KeyboardInterrupt())
+    assert report.main([str(tmp_path / "runs"), "--reps", "50", "--out", str(tmp_path / "out")]) == 130
+    assert "interrupted" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_report_refuses_a_seed_range_it_would_take_hours_to_list(tmp_path, capsys):
+    two_auxss_runs(tmp_path / "runs")
+    with pytest.raises(SystemExit) as exit_:
+        report.main([str(tmp_path / "runs"), "--seeds", "0-99999999"])
+    assert exit_.value.code == 2 and "expected at most 1,000 seeds" in capsys.readouterr().err

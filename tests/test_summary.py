@@ -29,8 +29,7 @@ def test_summary_of_a_batch_by_hand(tmp_path):
 
 
 def test_summary_refuses_a_directory_without_runs(tmp_path, capsys):
-    with pytest.raises(SystemExit):
-        summary.main([str(tmp_path)])
+    assert summary.main([str(tmp_path)]) == 2
     assert "holds no metrics.csv" in capsys.readouterr().err
 
 
@@ -93,3 +92,78 @@ def test_start_room_training_episodes_by_hand(tmp_path):
     text = summary.markdown(tmp_path, start_room_until=1000)
     assert "| seed0 | 2,000 | 1.00 (2,000) | 1.00 / 0.50 (at 2,000) | - | 2 (0.50) |" in text
     assert text.splitlines()[-1].endswith("| mean - | 3 (0.67) |")  # (1 + 1) of (2 + 1); no weights logged
+
+
+def damage(run, case):
+    """Break one file of a run directory written by write_run (with a config and start weights)."""
+    metrics, weights = run / "metrics.csv", run / "start_weights.npz"
+    if case == "no evaluation":
+        metrics.write_text(",".join(METRIC_FIELDS) + "\n")
+    elif case == "no column":
+        metrics.write_text("step,success_p0\n1000,0.5\n")
+    elif case == "not a number":
+        metrics.write_text(metrics.read_text().replace("1000.0,", "x,", 1).replace("1000,", "x,", 1))
+    elif case == "short row":
+        metrics.write_text(metrics.read_text() + "5000,0.5\n")
+    elif case == "not text":
+        metrics.write_bytes(b"\xff\xfe\x00garbage")
+    elif case == "truncated weights":
+        weights.write_bytes(weights.read_bytes()[:300])
+    elif case == "pickle weights":
+        weights.write_bytes(b"not an npz at all")
+    elif case == "weights of another shape":
+        np.savez(weights, steps=np.array([1000]), states=np.zeros((4, 4)), probabilities=np.ones((1, 3)) / 3)
+    elif case == "weights without states":
+        np.savez(weights, steps=np.array([1000]), probabilities=np.ones((1, 3)) / 3)
+    elif case == "bad config":
+        (run / "config.json").write_text("{not json")
+    elif case == "env not a dict":
+        (run / "config.json").write_text('{"env": [1, 2]}')
+    elif case == "bad env":
+        (run / "config.json").write_text('{"env": {"bridge_length": "long"}}')
+    elif case == "episodes without a column":
+        (run / "episodes.csv").write_text("episode,step\n1,100\n")
+    return {"no evaluation": metrics, "no column": metrics, "not a number": metrics, "short row": metrics,
+            "not text": metrics, "bad config": run / "config.json", "env not a dict": run / "config.json",
+            "bad env": run / "config.json", "episodes without a column": run / "episodes.csv"}.get(case, weights)
+
+
+@pytest.mark.parametrize("case", ["no evaluation", "no column", "not a number", "short row", "not text",
+                                  "truncated weights", "pickle weights", "weights of another shape",
+                                  "weights without states", "bad config", "env not a dict", "bad env",
+                                  "episodes without a column"])
+def test_summary_of_a_damaged_run_is_one_line_naming_the_file(tmp_path, capsys, case):
+    good, run = tmp_path / "good" / "seed0", tmp_path / "batch" / "seed0"
+    for directory in (good, run):
+        write_run(directory, [0.0, 0.9], [0.0, 0.5])
+        (directory / "config.json").write_text('{"env": {}}')
+        np.savez(directory / "start_weights.npz", steps=np.array([1000, 2000]), states=np.zeros((3, 4)),
+                 probabilities=np.full((2, 3), 1 / 3))
+        write_episodes(directory, [(100, -4.0, 0)])
+    broken = damage(run, case)
+    # the good directory first: its table must not be printed before the error either
+    assert summary.main([str(good.parent), str(run.parent), "--start-room", "2000"]) == 2
+    out, err = capsys.readouterr()
+    assert out == ""
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    assert err.startswith("python -m lava_bridge_mj.eval.summary: error: ") and str(broken) in err
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--threshold", "5"], "--threshold must be a success rate in [0, 1], got 5.0"),
+    (["--threshold", "nan"], "--threshold must be a success rate in [0, 1], got nan"),
+    (["--start-room", "inf"], "--start-room must be a step > 0, got inf"),
+])
+def test_summary_refuses_bad_options(tmp_path, capsys, argv, message):
+    write_run(tmp_path / "seed0", [0.0], [0.0])
+    with pytest.raises(SystemExit) as exit_:
+        summary.main([str(tmp_path), *argv])
+    assert exit_.value.code == 2 and message in capsys.readouterr().err
+
+
+def test_summary_of_a_missing_directory_or_a_file(tmp_path, capsys):
+    write_run(tmp_path / "seed0", [0.0], [0.0])
+    for path in (tmp_path / "nowhere", tmp_path / "seed0" / "metrics.csv"):
+        assert summary.main([str(path)]) == 2
+        err = capsys.readouterr().err
+        assert err == f"python -m lava_bridge_mj.eval.summary: error: {path} is not a directory\n"

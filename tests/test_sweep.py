@@ -50,6 +50,18 @@ def record(out):
     return json.loads((out / "sweep.json").read_text())
 
 
+def _alive(pid: int) -> bool:
+    """Whether process `pid` still runs (a zombie no one has reaped yet does not)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+needs_proc = pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="reads process states from /proc")
+
+
 def statuses(out):
     return {job["job"]: job["status"] for job in record(out)["jobs"]}
 
@@ -118,9 +130,8 @@ def test_running_a_finished_sweep_again_skips_every_run(finished, config_file, t
 
 def test_an_unfinished_run_resumes_from_its_checkpoint_and_only_it_trains(finished, config_file, tmp_path):
     out = copy_of(finished, tmp_path)
-    stopped = out / "sac-d500" / "seed1"  # as if killed between the checkpoints at steps 150 and 300
-    (stopped / "final.pt").unlink()
-    shutil.copy(stopped / "checkpoint.prev.pt", stopped / "checkpoint.pt")
+    stopped = out / "sac-d500" / "seed1"
+    make_unfinished(stopped)
     os.utime(stopped / "policies" / "step_150.pt", (1e9, 1e9))  # a restart would rewrite it
     done = out / "sac-d500" / "seed0" / "metrics.csv"
     done_mtime = done.stat().st_mtime_ns
@@ -149,6 +160,98 @@ def test_a_larger_steps_extends_finished_runs_from_their_last_checkpoint(finishe
     assert sweep.main(tiny_argv(out, config_file, "sac", "0-1", 300)) == 1
     assert all("past steps=300" in job["error"] for job in record(out)["jobs"])
     assert (out / "sac-d500" / "seed0" / "metrics.csv").read_bytes() == metrics
+
+
+def make_unfinished(run):
+    """What a run killed between its checkpoints at steps 150 and 300 leaves."""
+    (run / "final.pt").unlink()
+    shutil.copy(run / "checkpoint.prev.pt", run / "checkpoint.pt")
+
+
+HOLD_LOCK = ("import fcntl, sys, time; lock = open(sys.argv[1], 'a+'); fcntl.flock(lock, fcntl.LOCK_EX); "
+             "lock.truncate(0); lock.write('4242'); lock.flush(); print('locked', flush=True); "
+             "time.sleep(float(sys.argv[2]))")
+"""A process that holds a run directory's lock, as a training process does, for argv[2] seconds."""
+
+
+def hold_lock(run, seconds):
+    holder = subprocess.Popen([sys.executable, "-c", HOLD_LOCK, str(run / ".lock"), str(seconds)],
+                              stdout=subprocess.PIPE, text=True)
+    assert holder.stdout.readline() == "locked\n"
+    return holder
+
+
+def test_a_rerun_waits_for_a_run_directory_still_being_written(finished, config_file, tmp_path, capsys):
+    """A run directory locked by another process (a job of a killed sweep writing its last checkpoint)
+    for two seconds: the sweep says it waits, then resumes the run instead of failing its job."""
+    out = copy_of(finished, tmp_path)
+    stopped = out / "sac-d500" / "seed1"
+    make_unfinished(stopped)
+    holder = hold_lock(stopped, 2)
+    try:
+        assert sweep.main(tiny_argv(out, config_file)) == 0
+    finally:
+        holder.kill()
+        holder.wait()
+    assert "still being written by another process (pid 4242); waiting up to 60 s" in capsys.readouterr().err
+    sac = record(out)["jobs"][0]
+    assert (sac["status"], sac["trained"], sac["resumed"]) == ("done", [1], {"1": 150})
+
+
+def test_a_run_directory_locked_past_the_wait_fails_only_its_job(finished, config_file, tmp_path, capsys,
+                                                                  monkeypatch):
+    monkeypatch.setattr(sweep, "LOCK_WAIT", 0.5)
+    out = copy_of(finished, tmp_path)
+    stopped = out / "sac-d500" / "seed1"
+    make_unfinished(stopped)
+    holder = hold_lock(stopped, 120)
+    try:
+        assert sweep.main(tiny_argv(out, config_file)) == 1
+    finally:
+        holder.kill()
+        holder.wait()
+    assert f"still being written after 0.5 s: {stopped}" in capsys.readouterr().err
+    sac = record(out)["jobs"][0]
+    assert sac["status"] == "failed" and "being written by another process (pid 4242)" in sac["error"]
+    assert not (stopped / "final.pt").exists()
+
+
+def test_a_job_killed_after_its_last_write_is_recorded_done(finished, config_file, tmp_path, monkeypatch):
+    """The job's process dies without a result (SIGKILL) just after writing its runs' final.pt: its
+    runs are finished, so the record says done, not failed."""
+    out = copy_of(finished, tmp_path)
+    final = out / "sac-d500" / "seed1" / "final.pt"
+    aside = final.with_name("final.aside")
+    final.rename(aside)  # unfinished when the sweep looks, so the job is started
+    monkeypatch.setattr(sweep, "JOB_COMMAND", f"import os, signal; os.replace({str(aside)!r}, {str(final)!r}); "
+                                              "os.kill(os.getpid(), signal.SIGKILL)")
+    assert sweep.main(tiny_argv(out, config_file)) == 0
+    sac = record(out)["jobs"][0]
+    assert (sac["status"], sac["error"]) == ("done", None)
+
+
+@needs_proc
+def test_without_prctl_a_job_still_dies_with_its_parent(tmp_path):
+    """die_with_parent's fallback (polling os.getppid(), for systems without PR_SET_PDEATHSIG): a
+    grandchild whose parent is SIGKILLed gets SIGTERM."""
+    grandchild = ("import os, sys, time; from lava_bridge_mj.eval.sweep import die_with_parent; "
+                  "die_with_parent(os.getppid(), poll_interval=0.05, use_prctl=False); print('armed', flush=True); "
+                  "time.sleep(120)")
+    parent = ("import subprocess, sys, time; child = subprocess.Popen([sys.executable, '-c', sys.argv[1]], "
+              "stdout=subprocess.PIPE, text=True); assert child.stdout.readline() == 'armed\\n'; "
+              "print(child.pid, flush=True); time.sleep(120)")
+    process = subprocess.Popen([sys.executable, "-c", parent, grandchild], stdout=subprocess.PIPE, text=True)
+    pid = int(process.stdout.readline())
+    assert _alive(pid)
+    process.kill()
+    process.wait()
+    deadline = time.monotonic() + 10
+    while _alive(pid) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    alive = _alive(pid)
+    if alive:
+        os.kill(pid, signal.SIGKILL)
+    assert not alive, "the grandchild outlived its parent"
 
 
 def test_a_failing_job_is_reported_and_the_others_finish(config_file, tmp_path, capsys):
@@ -224,6 +327,37 @@ def test_the_ray_backend_runs_the_same_sweep(finished, config_file, tmp_path):
         assert metrics_without_wall_time(out / run.parent.name / run.name) == metrics_without_wall_time(run)
 
 
+def test_an_unreachable_ray_address_fails_at_once_with_one_line(config_file, tmp_path):
+    pytest.importorskip("ray")
+    out = tmp_path / "out"
+    started = time.monotonic()
+    try:  # ray.init alone retries for many minutes
+        done = subprocess.run([sys.executable, "-m", "lava_bridge_mj.eval.sweep",
+                               *tiny_argv(out, config_file, "sac", "0", 300, "--backend", "ray", "--address",
+                                          "127.0.0.1:1")], capture_output=True, text=True, timeout=120)
+    except subprocess.TimeoutExpired:
+        pytest.fail("sweep --address 127.0.0.1:1 still hangs after 120 s")
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.strip() == ("lava-bridge-bench sweep: error: --address 127.0.0.1:1: cannot connect to a Ray "
+                                   "cluster: nothing accepts connections at 127.0.0.1:1 (Connection refused)")
+    assert not out.exists()
+    assert time.monotonic() - started < 60
+
+
+def test_a_ray_address_that_accepts_but_never_answers_is_given_up_on(tmp_path):
+    """A port that accepts TCP connections but speaks no Ray: given up on after the timeout."""
+    pytest.importorskip("ray")
+    import socket
+
+    with socket.socket() as listener:
+        listener.bind(("127.0.0.1", 0))
+        listener.listen()
+        address = f"127.0.0.1:{listener.getsockname()[1]}"
+        started = time.monotonic()
+        assert sweep.ray_unreachable(address, timeout=3) == "no Ray cluster answered within 3 s"
+        assert time.monotonic() - started < 30
+
+
 # --- usage errors -----------------------------------------------------------------------------------
 @pytest.mark.parametrize("change, message", [
     ({"--methods": "sac,dqn"}, "unknown method 'dqn'"),
@@ -233,6 +367,8 @@ def test_the_ray_backend_runs_the_same_sweep(finished, config_file, tmp_path):
     ({"--workers": "0"}, "positive integer"),
     ({"--address": "127.0.0.1:6379"}, "--address needs --backend ray"),
     ({"--steps": "-5"}, "positive integer"),
+    ({"--seeds": "0-99999999"}, "expected at most 1,000 seeds, got 100,000,000"),
+    ({"--threads": "100000"}, "--threads 100000: this machine lets the sweep use"),
 ])
 def test_usage_errors_exit_2_and_write_nothing(change, message, config_file, tmp_path, capsys):
     argv = tiny_argv(tmp_path / "out", config_file)
@@ -246,6 +382,19 @@ def test_usage_errors_exit_2_and_write_nothing(change, message, config_file, tmp
     assert exit_.value.code == 2
     assert message in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_an_out_that_cannot_be_created_is_one_line(config_file, capsys):
+    """/proc refuses new entries even to root, whom a read-only directory does not stop."""
+    try:
+        code = sweep.main(tiny_argv("/proc/lava-bridge-sweep", config_file))
+    except SystemExit as exit_:  # refused before, as a usage error, where /proc is not writable
+        code = exit_.code
+    assert code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("lava-bridge-bench sweep: error: --out /proc/lava-bridge-sweep")
+    assert not any("Traceback" in line for line in err)
+    assert not Path("/proc/lava-bridge-sweep").exists()
 
 
 def test_a_configuration_every_method_rejects_is_a_usage_error(tmp_path, capsys):
@@ -265,11 +414,17 @@ def test_the_ray_backend_without_ray_names_the_extra(config_file, tmp_path, caps
     assert not (tmp_path / "out").exists()
 
 
-def test_a_sweep_killed_with_sigkill_resumes_to_the_uninterrupted_numbers(config_file, tmp_path):
+@pytest.fixture(scope="module")
+def reference_750(tmp_path_factory, config_file):
+    """An uninterrupted sweep of sac seeds 0-1 to 750 steps (one job): what interrupted ones must equal."""
+    out = tmp_path_factory.mktemp("reference") / "out"
+    assert sweep.main(tiny_argv(out, config_file, "sac", "0-1", 750, "--workers", "1")) == 0
+    return out
+
+
+def test_a_sweep_killed_with_sigkill_resumes_to_the_uninterrupted_numbers(config_file, tmp_path, reference_750):
     """SIGKILL of the sweep and its job process mid-training (after two checkpoints), then the same
     command: every run finishes with the metrics of an uninterrupted sweep."""
-    argv = tiny_argv(tmp_path / "reference", config_file, "sac", "0-1", 750, "--workers", "1")
-    assert sweep.main(argv) == 0
     out = tmp_path / "out"
     argv = tiny_argv(out, config_file, "sac", "0-1", 750, "--workers", "1")
     process = subprocess.Popen([sys.executable, "-m", "lava_bridge_mj.eval.sweep", *argv],
@@ -290,5 +445,45 @@ def test_a_sweep_killed_with_sigkill_resumes_to_the_uninterrupted_numbers(config
     assert early.stat().st_mtime_ns == written, "resumed from a checkpoint, not retrained from the start"
     for seed in ("seed0", "seed1"):
         resumed = metrics_without_wall_time(out / "sac-d500" / seed)
-        assert resumed == metrics_without_wall_time(tmp_path / "reference" / "sac-d500" / seed)
+        assert resumed == metrics_without_wall_time(reference_750 / "sac-d500" / seed)
         assert [row["step"] for row in resumed] == ["150", "300", "450", "600", "750"]
+
+
+@needs_proc
+def test_jobs_die_with_a_sweep_killed_alone_and_the_rerun_finishes_them(config_file, tmp_path, reference_750):
+    """SIGKILL of only the sweep's process, after a checkpoint of each of its two jobs: the jobs write a
+    checkpoint and stop within seconds instead of training on as orphans, and the same command at once
+    resumes both to the uninterrupted numbers, recorded as done."""
+    out = tmp_path / "out"
+    argv = tiny_argv(out, config_file, "sac", "0-1", 750, "--workers", "2")
+    process = subprocess.Popen([sys.executable, "-m", "lava_bridge_mj.eval.sweep", *argv],
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    pids = []
+    for line in process.stdout:
+        if "(pid " in line:
+            pids.append(int(line.rsplit("(pid ", 1)[1].rstrip(")\n")))
+        if len(pids) == 2:
+            break
+    runs = [out / "sac-d500" / f"seed{seed}" for seed in (0, 1)]
+    deadline = time.monotonic() + 180
+    while time.monotonic() < deadline and not all((run / "checkpoint.pt").exists() for run in runs):
+        time.sleep(0.05)
+    process.kill()
+    process.communicate(timeout=60)
+    deadline = time.monotonic() + 20
+    while time.monotonic() < deadline and any(map(_alive, pids)):
+        time.sleep(0.05)
+    try:
+        assert not any(map(_alive, pids)), "the jobs train on after their sweep was killed"
+        assert not any((run / "final.pt").exists() for run in runs), "the jobs trained on to the end"
+    finally:
+        for pid in filter(_alive, pids):
+            os.kill(pid, signal.SIGKILL)
+    logs = [p.read_text() for p in sorted((out / "logs").glob("*.log"))]
+    assert all("interrupted in" in log for log in logs) and len(logs) == 2, logs  # stopped by the signal
+
+    assert sweep.main(argv) == 0
+    assert record(out)["status"] == "finished"
+    assert [(job["status"], job["error"]) for job in record(out)["jobs"]] == [("done", None), ("done", None)]
+    for run in runs:
+        assert metrics_without_wall_time(run) == metrics_without_wall_time(reference_750 / "sac-d500" / run.name)

@@ -1,5 +1,7 @@
 """Rollout videos: decodable mp4 files with the expected frame count and size, written atomically."""
 
+import os
+import shutil
 import subprocess
 import sys
 
@@ -188,3 +190,114 @@ def test_expert_video_through_the_command(tmp_path):
     assert video.main(["--expert", "--episodes", "1", "--max-steps", "4", "--out", str(out)]) == 0
     with imageio.get_reader(out) as reader:
         assert len([frame for frame in reader]) == 2 * (4 + 1)  # the expert needs far more than 4 steps
+
+
+# --- outputs that cannot be written, bad options ------------------------------------------------------
+@pytest.fixture
+def no_rendering(monkeypatch):
+    """record_rollouts replaced by a stub that records its calls: a refusal must come before rendering."""
+    calls = []
+    monkeypatch.setattr("lava_bridge_mj.eval.video.record_rollouts", lambda *args, **kwargs: calls.append(args))
+    return calls
+
+
+@pytest.mark.parametrize("option, value, message", [
+    ("--out", "config.json/clip.mp4", "config.json is a file, not a directory"),
+    ("--out", "deeper/config.json/clip.mp4", "config.json is a file, not a directory"),
+    ("--out", "clip.txt", "expected a file name ending in .mp4"),
+    ("--out", "clip", "expected a file name ending in .mp4"),
+    ("--out", "policies", "expected a file name ending in .mp4"),
+    ("--out", "policies.mp4", "is a directory"),
+    ("--still", "frame.txt", "expected a file name ending in .png, .jpg or .jpeg"),
+    ("--still", "config.json/frame.png", "config.json is a file, not a directory"),
+])
+def test_video_refuses_an_output_it_cannot_write_before_rendering(tiny_run, tmp_path, capsys, no_rendering, option,
+                                                                   value, message):
+    from lava_bridge_mj.eval import video
+
+    run_dir = tmp_path / "run"
+    shutil.copytree(tiny_run[0], run_dir)
+    (run_dir / "policies.mp4").mkdir()
+    (run_dir / "deeper").mkdir()
+    (run_dir / "deeper" / "config.json").write_text("{}")
+    before = sorted(p.name for p in tmp_path.rglob("*"))
+    argv = [str(run_dir), "--out", str(run_dir / "clip.mp4"), option, str(run_dir / value)]
+    assert video.main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"lava-bridge-bench video: error: {option} {run_dir / value}") and message in err
+    assert len(err.strip().splitlines()) == 1
+    assert no_rendering == [] and sorted(p.name for p in tmp_path.rglob("*")) == before
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--seed", "-1"], "expected a non-negative integer seed, got -1"),
+    (["--episodes", "0"], "--episodes must be in 1-100, got 0"),
+    (["--episodes", "1000000000"], "--episodes must be in 1-100, got 1000000000"),
+    (["--max-steps", "501"], "--max-steps must be in 1-500, got 501"),
+])
+def test_video_refuses_bad_options(tmp_path, capsys, no_rendering, argv, message):
+    from lava_bridge_mj.eval import video
+
+    with pytest.raises(SystemExit) as exit_:
+        video.main(["--expert", "--out", str(tmp_path / "x.mp4"), *argv])
+    assert exit_.value.code == 2 and message in capsys.readouterr().err
+    assert no_rendering == [] and not list(tmp_path.iterdir())
+
+
+def test_a_still_in_a_new_directory_is_written_with_the_video(tmp_path, capsys):
+    from lava_bridge_mj.eval import video
+
+    still = tmp_path / "nodir" / "last.png"
+    assert video.main(["--expert", "--episodes", "1", "--max-steps", "3", "--out", str(tmp_path / "e.mp4"),
+                       "--still", str(still)]) == 0
+    assert imageio.imread(still).shape == (400, 960, 3) and (tmp_path / "e.mp4").stat().st_size > 0
+
+
+def test_ffmpeg_failing_to_write_is_one_line_and_leaves_nothing(tmp_path, capsys):
+    """A real ffmpeg that cannot write its output (here: a directory holds the temporary name): one
+    line naming the video with ffmpeg's reason, exit 2, no video, no still, ffmpeg's messages not shown."""
+    import os
+
+    from lava_bridge_mj.eval import video
+
+    out, still = tmp_path / "e.mp4", tmp_path / "e.png"
+    (tmp_path / f".e.partial{os.getpid()}.mp4").mkdir()
+    assert video.main(["--expert", "--episodes", "1", "--max-steps", "3", "--out", str(out), "--still", str(still)]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and err.startswith(f"lava-bridge-bench video: error: cannot write {out}: ")
+    assert "directory" in err.lower() and err.strip().endswith("nothing written")
+    assert not out.exists() and not still.exists()
+
+
+def test_an_interrupted_video_leaves_nothing(tmp_path, capsys, monkeypatch):
+    from lava_bridge_mj.eval import video
+
+    steps = []
+
+    def interrupted_after_five_steps(obs):
+        steps.append(obs)
+        if len(steps) == 5:
+            raise KeyboardInterrupt
+        return np.zeros(2, dtype=np.float32)
+
+    monkeypatch.setattr("lava_bridge_mj.ScriptedExpert", lambda env: type("Stub", (), {"act": staticmethod(
+        interrupted_after_five_steps)})())
+    assert video.main(["--expert", "--episodes", "1", "--max-steps", "20", "--out", str(tmp_path / "e.mp4")]) == 130
+    assert "interrupted; nothing written" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only directories")
+def test_video_into_a_read_only_run_directory_is_one_line(tiny_run, tmp_path, capsys, no_rendering):
+    from lava_bridge_mj.eval import video
+
+    run_dir = tmp_path / "run"
+    shutil.copytree(tiny_run[0], run_dir)
+    run_dir.chmod(0o555)
+    try:
+        assert video.main([str(run_dir)]) == 2
+    finally:
+        run_dir.chmod(0o755)
+    assert capsys.readouterr().err == (f"lava-bridge-bench video: error: --out {run_dir / 'rollouts.mp4'}: {run_dir} "
+                                       "is not a writable directory\n")
+    assert no_rendering == []
