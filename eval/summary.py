@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+import lava_bridge_mj
 from lava_bridge_mj.layout import Layout
 
 THRESHOLD = 0.8
@@ -123,12 +124,14 @@ def seed_summary(rows: list[dict[str, float]], threshold: float = THRESHOLD) -> 
 
 def in_start_room(run_dir: Path, positions: np.ndarray) -> np.ndarray:
     """Which of `positions` ((n, 2+) arrays, x and y first) lie in the start room of the run's layout."""
-    env = read_config(run_dir).get("env", {})
+    config = read_config(run_dir)
+    env = config.get("env", {})
     if not isinstance(env, dict):
         raise ValueError(f"{run_dir / 'config.json'}: env must be a JSON object of layout settings, got {env!r}")
     layout_fields = {f.name for f in dataclasses.fields(Layout)}
     try:
-        room = Layout(**{k: v for k, v in env.items() if k in layout_fields}).start_room
+        task = lava_bridge_mj.task_layout(config.get("env_id", lava_bridge_mj.ENV_ID))
+        room = dataclasses.replace(task, **{k: v for k, v in env.items() if k in layout_fields}).start_room
     except (TypeError, ValueError) as error:
         raise ValueError(f"{run_dir / 'config.json'}: its env settings make no maze ({error})") from None
     return (np.abs(positions[:, 0] - room.x) <= room.half_x) & (np.abs(positions[:, 1] - room.y) <= room.half_y)

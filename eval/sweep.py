@@ -189,13 +189,13 @@ def wait_for_writers(directories: Sequence[Path], timeout: float, poll: float = 
 def _checkpoint_step(directory: Path):
     """The step of the run's latest checkpoint; None without one; the error text if it is unreadable
     (that seed then trains in a batch of its own, where the trainer reports the error)."""
+    from lava_bridge_mj.eval.run_files import load_torch
+
     path = directory / "checkpoint.pt"
     if not path.exists():
         return None
-    import torch
-
     try:
-        return int(torch.load(path, weights_only=False)["step"])
+        return int(load_torch(path)["step"])
     except Exception as error:  # noqa: BLE001 - whatever it is, the trainer names it
         return f"unreadable {path}: {error}"
 

@@ -187,6 +187,7 @@ def load_policy(run_dir: str | Path, policy: str = "final") -> tuple[Policy, Any
     one-line reason when the directory, its config or the policy is missing or unreadable."""
     import torch
 
+    from lava_bridge_mj.eval.run_files import load_torch
     from lava_bridge_mj.eval.runner import RunConfig, make_agent
 
     run_dir = Path(run_dir)
@@ -215,7 +216,7 @@ def load_policy(run_dir: str | Path, policy: str = "final") -> tuple[Policy, Any
         if path is None:
             raise ValueError(f"{run_dir} holds neither final.pt nor checkpoint.pt: the run has not checkpointed yet")
     try:
-        state = torch.load(path, weights_only=snapshot)  # a checkpoint also holds RNG states and more
+        state = load_torch(path, weights_only=snapshot)  # CRC-checked; a checkpoint also holds RNG states
         actor = state if snapshot else state["agent"]["actor"]
         agent = make_agent(config, [config.seed])
         agent.actor.load_state_dict(actor)
@@ -239,6 +240,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("run_dir", nargs="?", type=Path, help="run directory (holding config.json and final.pt, "
                         "checkpoint.pt or policies/)")
     parser.add_argument("--expert", action="store_true", help="record the scripted expert instead of a run")
+    parser.add_argument("--env", dest="env_id", metavar="ID", choices=tuple(lava_bridge_mj.TASKS), default=None,
+                        help="with --expert: the task (default: LavaBridge-v0); a run's task is its own")
     parser.add_argument("--policy", default="final", help="final (final.pt, or the latest checkpoint.pt of an "
                         "unfinished run) or step_N (policies/step_N.pt) (default: %(default)s)")
     parser.add_argument("--episodes", type=int, default=2,
@@ -253,6 +256,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.expert == (args.run_dir is not None):
         parser.error("give either RUN_DIR or --expert")
+    if args.env_id is not None and not args.expert:
+        parser.error("--env goes with --expert; a run is rendered on its own task")
     for name, most in (("episodes", MAX_EPISODES), ("max_steps", lava_bridge_mj.MAX_EPISODE_STEPS)):
         if not 1 <= getattr(args, name) <= most:
             parser.error(f"--{name.replace('_', '-')} must be in 1-{most}, got {getattr(args, name)}")
@@ -261,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"lava-bridge-bench video: error: {message}", file=sys.stderr)
         return code
 
-    env_kwargs: dict = {}
+    env_id, env_kwargs = args.env_id or lava_bridge_mj.ENV_ID, {}
     if args.expert:
         out = args.out or Path("runs/expert.mp4")
     else:
@@ -278,9 +283,9 @@ def main(argv: list[str] | None = None) -> int:
             policy, config, what = load_policy(args.run_dir, args.policy)
         except ValueError as problem:
             return error(str(problem))
-        env_kwargs = config.env
+        env_id, env_kwargs = config.env_id, config.env
     previous = signal.signal(signal.SIGTERM, _interrupt) if _in_main_thread() else None
-    env = gymnasium.make(lava_bridge_mj.ENV_ID, render_mode="rgb_array", max_episode_steps=args.max_steps,
+    env = gymnasium.make(env_id, render_mode="rgb_array", max_episode_steps=args.max_steps,
                          **env_kwargs)
     try:
         policy = policy or lava_bridge_mj.ScriptedExpert(env).act

@@ -11,8 +11,10 @@ import os
 if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
     os.environ["MUJOCO_GL"] = "egl"
 
+import contextlib  # noqa: E402
 import csv  # noqa: E402
 import shutil  # noqa: E402
+import subprocess  # noqa: E402
 
 import pytest  # noqa: E402
 
@@ -43,3 +45,38 @@ def interrupted_copy(full_dir, resumed_dir):
         if (full_dir / name).exists():
             shutil.copy(full_dir / name, resumed_dir / name)
     shutil.copy(full_dir / "checkpoint.prev.pt", resumed_dir / "checkpoint.pt")
+
+
+def flip_a_data_bit(path):
+    """Flip one bit inside the largest record of a torch zip archive: its data, not its headers."""
+    import zipfile
+
+    with zipfile.ZipFile(path) as archive:
+        info = max(archive.infolist(), key=lambda i: i.file_size)
+    data = bytearray(path.read_bytes())
+    offset = info.header_offset + 30 + len(info.filename.encode()) + len(info.extra)  # past the local header
+    data[offset + info.file_size // 2] ^= 0x10
+    path.write_bytes(bytes(data))
+
+
+@contextlib.contextmanager
+def read_only(directory):
+    """`directory` made read-only for this process, root included: for a normal user its mode is
+    0555; root writes through modes, so for root it is bind-mounted read-only onto itself (the kernel
+    then refuses every write with EROFS). Skips only where neither is possible."""
+    directory = str(directory)
+    if os.geteuid() != 0:
+        os.chmod(directory, 0o555)
+        try:
+            yield
+        finally:
+            os.chmod(directory, 0o755)
+        return
+    mounted = subprocess.run(["mount", "--bind", directory, directory], capture_output=True)
+    if mounted.returncode != 0:
+        pytest.skip(f"root cannot make {directory} read-only here: {mounted.stderr.decode().strip()}")
+    try:
+        subprocess.run(["mount", "-o", "remount,bind,ro", directory], check=True, capture_output=True)
+        yield
+    finally:
+        subprocess.run(["umount", directory], check=True, capture_output=True)

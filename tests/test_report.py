@@ -17,6 +17,7 @@ import pytest
 
 pytest.importorskip("rliable", reason="the report needs the plots extra: pip install -e '.[plots]'")
 
+from conftest import read_only  # noqa: E402
 from rliable import metrics as rliable_metrics  # noqa: E402
 
 from lava_bridge_mj.eval import aggregate, cli, findings, report  # noqa: E402
@@ -529,14 +530,10 @@ def test_an_out_that_cannot_be_a_directory_is_one_line(tmp_path, capsys, monkeyp
     assert sorted(p.name for p in tmp_path.rglob("*")) == before
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only directories")
 def test_a_read_only_run_directory_is_one_line(tmp_path, capsys):
     two_auxss_runs(tmp_path / "runs")
-    (tmp_path / "runs").chmod(0o555)
-    try:
+    with read_only(tmp_path / "runs"):
         assert report.main([str(tmp_path / "runs"), "--reps", "50"]) == 2
-    finally:
-        (tmp_path / "runs").chmod(0o755)
     err = capsys.readouterr().err
     assert err == (f"lava-bridge-bench report: error: --out {tmp_path / 'runs' / 'report'} cannot be made: "
                    f"{tmp_path / 'runs'} is not a writable directory\n")

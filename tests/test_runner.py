@@ -12,7 +12,7 @@ import torch
 
 import lava_bridge_mj
 
-from conftest import interrupted_copy, metrics_without_wall_time
+from conftest import flip_a_data_bit, interrupted_copy, metrics_without_wall_time
 
 from lava_bridge_mj.agents.sac import SACConfig
 from lava_bridge_mj.agents.start_strategies import GoalDistSS
@@ -394,18 +394,6 @@ def finished_run(tmp_path_factory):
 def copy_run(source, target):
     shutil.copytree(source, target, ignore=shutil.ignore_patterns(".lock"))
     return target
-
-
-def flip_a_data_bit(path):
-    """Flip one bit inside the largest record of a torch zip archive: its data, not its headers."""
-    import zipfile
-
-    with zipfile.ZipFile(path) as archive:
-        info = max(archive.infolist(), key=lambda i: i.file_size)
-    data = bytearray(path.read_bytes())
-    offset = info.header_offset + 30 + len(info.filename.encode()) + len(info.extra)  # past the local header
-    data[offset + info.file_size // 2] ^= 0x10
-    path.write_bytes(bytes(data))
 
 
 def test_a_directory_with_run_files_but_no_config_is_never_trained_into(finished_run, tmp_path, capsys):

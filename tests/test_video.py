@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import lava_bridge_mj
+from conftest import flip_a_data_bit, read_only
 from lava_bridge_mj.eval import cli
 from lava_bridge_mj.eval.video import record_rollouts
 
@@ -156,6 +157,8 @@ def test_video_of_a_snapshot_defaults_to_a_file_in_the_run(tiny_run, tmp_path):
     ("bad config", "is not a usable run configuration"),
     ("no policy", "holds neither final.pt nor checkpoint.pt"),
     ("no snapshot", "has no policy snapshot step_999.pt; available steps: 150, 300"),
+    ("damaged snapshot", "step_150.pt is damaged"),
+    ("damaged final", "final.pt is damaged"),
     ("bad spec", "--policy must be final or step_N"),
 ])
 def test_video_refuses_bad_runs_with_one_line_and_exit_2(tiny_run, tmp_path, capsys, case, message):
@@ -164,7 +167,7 @@ def test_video_refuses_bad_runs_with_one_line_and_exit_2(tiny_run, tmp_path, cap
     from lava_bridge_mj.eval import video
 
     run_dir = tmp_path / "run"
-    policy = {"no snapshot": "step_999", "bad spec": "best"}.get(case, "final")
+    policy = {"no snapshot": "step_999", "bad spec": "best", "damaged snapshot": "step_150"}.get(case, "final")
     if case != "missing":
         shutil.copytree(tiny_run[0], run_dir)
     if case == "no config":
@@ -174,6 +177,8 @@ def test_video_refuses_bad_runs_with_one_line_and_exit_2(tiny_run, tmp_path, cap
     if case == "no policy":
         for name in ("final.pt", "checkpoint.pt"):
             (run_dir / name).unlink()
+    if case.startswith("damaged"):  # a flipped bit that torch.load alone would not notice
+        flip_a_data_bit(run_dir / ("policies/step_150.pt" if case == "damaged snapshot" else "final.pt"))
     before = sorted(p.name for p in tmp_path.rglob("*"))
     out = tmp_path / "out.mp4"
     assert video.main([str(run_dir), "--policy", policy, "--out", str(out)]) == 2
@@ -186,10 +191,15 @@ def test_video_refuses_bad_runs_with_one_line_and_exit_2(tiny_run, tmp_path, cap
 def test_expert_video_through_the_command(tmp_path):
     from lava_bridge_mj.eval import video
 
-    out = tmp_path / "expert.mp4"
-    assert video.main(["--expert", "--episodes", "1", "--max-steps", "4", "--out", str(out)]) == 0
-    with imageio.get_reader(out) as reader:
-        assert len([frame for frame in reader]) == 2 * (4 + 1)  # the expert needs far more than 4 steps
+    firsts = {}
+    for task in ("LavaBridge-v0", "LavaBridgeBend-v0"):
+        out = tmp_path / f"{task}.mp4"
+        assert video.main(["--expert", "--env", task, "--episodes", "1", "--max-steps", "4", "--out", str(out)]) == 0
+        with imageio.get_reader(out) as reader:
+            frames = [frame for frame in reader]
+        assert len(frames) == 2 * (4 + 1)  # the expert needs far more than 4 steps
+        firsts[task] = frames[0].astype(int)
+    assert np.abs(firsts["LavaBridge-v0"] - firsts["LavaBridgeBend-v0"]).mean() > 1  # another maze is drawn
 
 
 # --- outputs that cannot be written, bad options ------------------------------------------------------
@@ -230,7 +240,7 @@ def test_video_refuses_an_output_it_cannot_write_before_rendering(tiny_run, tmp_
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["--seed", "-1"], "expected a non-negative integer seed, got -1"),
+    (["--seed", "-1"], "expected an integer seed in [0, 4294967295], got -1"),
     (["--episodes", "0"], "--episodes must be in 1-100, got 0"),
     (["--episodes", "1000000000"], "--episodes must be in 1-100, got 1000000000"),
     (["--max-steps", "501"], "--max-steps must be in 1-500, got 501"),
@@ -287,17 +297,13 @@ def test_an_interrupted_video_leaves_nothing(tmp_path, capsys, monkeypatch):
     assert list(tmp_path.iterdir()) == []
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only directories")
 def test_video_into_a_read_only_run_directory_is_one_line(tiny_run, tmp_path, capsys, no_rendering):
     from lava_bridge_mj.eval import video
 
     run_dir = tmp_path / "run"
     shutil.copytree(tiny_run[0], run_dir)
-    run_dir.chmod(0o555)
-    try:
+    with read_only(run_dir):
         assert video.main([str(run_dir)]) == 2
-    finally:
-        run_dir.chmod(0o755)
     assert capsys.readouterr().err == (f"lava-bridge-bench video: error: --out {run_dir / 'rollouts.mp4'}: {run_dir} "
                                        "is not a writable directory\n")
     assert no_rendering == []
