@@ -4,7 +4,6 @@ synthetic run directories, and the report command's figures and Markdown."""
 import csv
 import json
 import math
-import os
 import re
 import subprocess
 import sys
