@@ -53,6 +53,7 @@ from contextlib import redirect_stderr, redirect_stdout
 from datetime import datetime, timezone
 from pathlib import Path
 
+import lava_bridge_mj
 from lava_bridge_mj.eval.atomic import atomic_write_text
 from lava_bridge_mj.eval.cli import _check_writable, _positive_int, format_seeds, parse_seeds, read_config_file
 from lava_bridge_mj.eval.runner import METHODS, RunConfig, RunInterrupted, train
@@ -78,16 +79,19 @@ MAX_SEEDS = 1000
 
 @dataclasses.dataclass(frozen=True)
 class Job:
-    """A batch of seeds of one (method, demos) group, trained together in one process."""
+    """A batch of seeds of one (task, method, demos) group, trained together in one process."""
 
     method: str
     demos: int
     seeds: tuple[int, ...]
+    env_id: str = lava_bridge_mj.ENV_ID
 
     @property
     def group(self) -> str:
-        """The directory under the sweep's OUT that holds this method's runs on this demo set."""
-        return f"{self.method}-d{self.demos}"
+        """The directory under the sweep's OUT that holds this method's runs on this demo set:
+        METHOD-dDEMOS for LavaBridge-v0, ENV_ID/METHOD-dDEMOS for the suite's other tasks."""
+        name = f"{self.method}-d{self.demos}"
+        return name if self.env_id == lava_bridge_mj.ENV_ID else f"{self.env_id}/{name}"
 
     @property
     def name(self) -> str:
@@ -95,7 +99,7 @@ class Job:
 
     @property
     def log_name(self) -> str:
-        return f"{self.group}_seeds{format_seeds(self.seeds)}.log"
+        return f"{self.group.replace('/', '_')}_seeds{format_seeds(self.seeds)}.log"
 
     def run_dirs(self, out: Path) -> list[Path]:
         return [Path(out) / self.group / f"seed{seed}" for seed in self.seeds]
@@ -113,13 +117,13 @@ def split(seeds: Sequence[int], parts: int) -> list[tuple[int, ...]]:
 
 
 def plan(methods: Sequence[str], demo_sets: Sequence[int], seeds: Sequence[int], workers: int,
-         seeds_per_job: int = SEEDS_PER_JOB) -> list[Job]:
-    """The sweep's jobs, group by group (method-major), each group's seeds split into the fewest
-    chunks that keep every job at most `seeds_per_job` seeds and give at least `workers` jobs."""
-    groups = [(method, demos) for method in methods for demos in demo_sets]
+         seeds_per_job: int = SEEDS_PER_JOB, env_ids: Sequence[str] = (lava_bridge_mj.ENV_ID,)) -> list[Job]:
+    """The sweep's jobs, group by group (task-major, then method), each group's seeds split into the
+    fewest chunks that keep every job at most `seeds_per_job` seeds and give at least `workers` jobs."""
+    groups = [(env_id, method, demos) for env_id in env_ids for method in methods for demos in demo_sets]
     parts = max(math.ceil(len(seeds) / seeds_per_job), math.ceil(workers / len(groups)))
     parts = min(parts, len(seeds))
-    return [Job(method, demos, chunk) for method, demos in groups for chunk in split(seeds, parts)]
+    return [Job(method, demos, chunk, env_id) for env_id, method, demos in groups for chunk in split(seeds, parts)]
 
 
 def seed_status(config: RunConfig, directory: Path) -> str:
@@ -208,7 +212,7 @@ def run_job(job: Job, config_values: dict, out: str | Path, threads: int = 1) ->
     batch per checkpoint step (a batch resumes only from a step all its seeds share); a directory
     that holds another configuration is an error, and the job's other seeds still train."""
     started = time.perf_counter()
-    result = {"status": "done", "trained": [], "skipped": [], "resumed": {}, "error": None}
+    result = {"status": "done", "trained": [], "skipped": [], "resumed": {}, "diverged": {}, "error": None}
     errors = []
     try:
         import torch
@@ -229,8 +233,8 @@ def run_job(job: Job, config_values: dict, out: str | Path, threads: int = 1) ->
             resumed = f" from their checkpoints at step {step}" if isinstance(step, int) else ""
             print(f"{job.group}: training seeds {format_seeds(seeds)}{resumed}", flush=True)
             try:
-                train(config, [Path(out) / job.group / f"seed{s}" for s in seeds], seeds=seeds, resume=True,
-                      progress=False)
+                run = train(config, [Path(out) / job.group / f"seed{s}" for s in seeds], seeds=seeds,
+                            resume=True, progress=False)
             except RunInterrupted:
                 raise
             except Exception as error:  # noqa: BLE001 - one batch's failure must not stop the others
@@ -238,6 +242,7 @@ def run_job(job: Job, config_values: dict, out: str | Path, threads: int = 1) ->
                 errors.append(f"seeds {format_seeds(seeds)}: {type(error).__name__}: {error}")
                 continue
             result["trained"].extend(seeds)
+            result["diverged"].update({str(s): at for s, at in run.diverged.items()})  # stopped, the rest trained
             if isinstance(step, int):
                 result["resumed"].update({str(s): step for s in seeds})
         if errors:
@@ -255,13 +260,14 @@ def run_job(job: Job, config_values: dict, out: str | Path, threads: int = 1) ->
 
 
 def _spec(job: Job, config: RunConfig, out: Path, threads: int) -> dict:
-    return {"method": job.method, "demos": job.demos, "seeds": list(job.seeds), "config": config.to_dict(),
+    return {"method": job.method, "demos": job.demos, "seeds": list(job.seeds), "env_id": job.env_id,
+            "config": config.to_dict(),
             "out": str(out.resolve()), "threads": threads}
 
 
 def _run_spec(spec: dict) -> dict:
-    return run_job(Job(spec["method"], spec["demos"], tuple(spec["seeds"])), spec["config"], spec["out"],
-                   spec["threads"])
+    job = Job(spec["method"], spec["demos"], tuple(spec["seeds"]), spec["env_id"])
+    return run_job(job, spec["config"], spec["out"], spec["threads"])
 
 
 def job_main(spec_json: str, result_file: str, sweep_pid: int | None = None) -> None:
@@ -334,7 +340,7 @@ class SweepRecord:
         self.status = "running"
         self.jobs = [{"job": job.name, "method": job.method, "demos": job.demos, "seeds": list(job.seeds),
                       "dirs": [str(d) for d in job.run_dirs(out)], "log": str(out / "logs" / job.log_name),
-                      "status": "pending", "trained": [], "skipped": [], "resumed": {}, "error": None,
+                      "status": "pending", "trained": [], "skipped": [], "resumed": {}, "diverged": {}, "error": None,
                       "wall_time": None} for job in jobs]
 
     def update(self, index: int, **fields) -> None:
@@ -438,7 +444,7 @@ def _all_finished(spec: dict) -> bool:
         config = RunConfig.from_dict(spec["config"], source="the sweep")
     except ValueError:
         return False
-    job = Job(spec["method"], spec["demos"], tuple(spec["seeds"]))
+    job = Job(spec["method"], spec["demos"], tuple(spec["seeds"]), spec["env_id"])
     return all(seed_status(dataclasses.replace(config, seed=seed), directory) == "finished"
                for seed, directory in zip(job.seeds, job.run_dirs(Path(spec["out"]))))
 
@@ -485,7 +491,9 @@ def _collect_ray(record: SweepRecord, index: int, ref, spec: dict, stopped: bool
 def _print_finished(entry: dict) -> None:
     error = f": {entry['error']}" if entry.get("error") else ""
     wall = f" in {entry['wall_time']} s" if entry.get("wall_time") is not None else ""
-    print(f"{entry['status']} {entry['job']}{wall}{error}", flush=True)
+    diverged = ", ".join(f"seed {seed} at step {step}" for seed, step in (entry.get("diverged") or {}).items())
+    diverged = f" (diverged and stopped: {diverged})" if diverged else ""
+    print(f"{entry['status']} {entry['job']}{wall}{diverged}{error}", flush=True)
 
 
 def summary(record: SweepRecord) -> str:
@@ -582,6 +590,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "single lava-bridge-bench run writes (OUT/METHOD-dDEMOS/seedSEED), as batched jobs on "
                     "local worker processes or Ray. Running it again skips finished runs and resumes "
                     "unfinished ones; OUT/sweep.json records every job's status.")
+    parser.add_argument("--envs", type=_choices("task", tuple(lava_bridge_mj.TASKS)), metavar="LIST",
+                        default=[lava_bridge_mj.ENV_ID],
+                        help=f"comma-separated tasks, some of {', '.join(lava_bridge_mj.TASKS)} (default: "
+                             f"{lava_bridge_mj.ENV_ID}); runs of another task go to OUT/TASK/METHOD-dDEMOS")
     parser.add_argument("--methods", required=True, type=_choices("method", METHODS), metavar="LIST",
                         help=f"comma-separated methods, some of {', '.join(METHODS)}")
     parser.add_argument("--seeds", required=True, type=seed_list, metavar="LIST",
@@ -635,14 +647,16 @@ def main(argv: list[str] | None = None) -> int:
         if getattr(args, name) is not None:
             values[name] = getattr(args, name)
     configs, rejected = {}, {}
-    for method in args.methods:
-        for demos in args.demos:
-            try:
-                configs[method, demos] = RunConfig.from_dict({**values, "method": method, "demos": demos, "seed": 0},
-                                                             source=f"--config {args.config}" if args.config
-                                                             else "options")
-            except ValueError as error:
-                rejected[method, demos] = str(error)
+    for env_id in args.envs:
+        for method in args.methods:
+            for demos in args.demos:
+                group = env_id, method, demos
+                try:
+                    configs[group] = RunConfig.from_dict({**values, "env_id": env_id, "method": method,
+                                                          "demos": demos, "seed": 0},
+                                                         source=f"--config {args.config}" if args.config else "options")
+                except ValueError as error:
+                    rejected[group] = str(error)
     if not configs:  # wrong for every method: a usage error, not a sweep of failures
         parser.error(next(iter(rejected.values())))
 
@@ -681,12 +695,12 @@ def main(argv: list[str] | None = None) -> int:
 
 def _sweep(args: argparse.Namespace, argv, workers: int, configs: dict, rejected: dict) -> int:
     out = args.out
-    jobs = plan(args.methods, args.demos, args.seeds, workers, args.seeds_per_job)
+    jobs = plan(args.methods, args.demos, args.seeds, workers, args.seeds_per_job, args.envs)
     try:
         (out / "logs").mkdir(parents=True, exist_ok=True)
     except OSError as error:
         return _error(f"--out {out}: cannot create {error.filename or out / 'logs'} ({error.strerror or error})")
-    arguments = {"argv": list(sys.argv[1:] if argv is None else argv), "methods": args.methods,
+    arguments = {"argv": list(sys.argv[1:] if argv is None else argv), "envs": args.envs, "methods": args.methods,
                  "seeds": args.seeds, "demos": args.demos, "steps": args.steps, "eval_every": args.eval_every,
                  "eval_episodes": args.eval_episodes, "config": str(args.config) if args.config else None,
                  "out": str(out), "workers": workers, "seeds_per_job": args.seeds_per_job,
@@ -700,11 +714,12 @@ def _sweep(args: argparse.Namespace, argv, workers: int, configs: dict, rejected
     record = SweepRecord(out, arguments, jobs)
     todo = []
     for index, job in enumerate(jobs):
-        if (job.method, job.demos) in rejected:
+        group = job.env_id, job.method, job.demos
+        if group in rejected:
             record.jobs[index].update(status="failed", error=f"configuration rejected for {job.method}: "
-                                                              f"{rejected[job.method, job.demos]}")
+                                                              f"{rejected[group]}")
             continue
-        config = configs[job.method, job.demos]
+        config = configs[group]
         if all(seed_status(dataclasses.replace(config, seed=seed), d) == "finished"
                for seed, d in zip(job.seeds, job.run_dirs(out))):
             record.jobs[index].update(status="skipped", skipped=list(job.seeds))

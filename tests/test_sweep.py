@@ -99,6 +99,25 @@ def test_job_names_and_run_directories():
                                            Path("study/auxss-d7500/seed2"), Path("study/auxss-d7500/seed5")]
 
 
+def test_runs_of_another_task_go_to_its_own_directory():
+    job = Job("auxss", 500, (0, 1), "LavaBridgeBend-v0")
+    assert job.run_dirs(Path("study")) == [Path("study/LavaBridgeBend-v0/auxss-d500/seed0"),
+                                           Path("study/LavaBridgeBend-v0/auxss-d500/seed1")]
+    assert job.log_name == "LavaBridgeBend-v0_auxss-d500_seeds0-1.log"
+    assert [(j.env_id, j.method) for j in plan(["sac", "auxss"], [500], [0], 1, env_ids=["LavaBridge-v0",
+            "LavaBridgeBend-v0"])] == [("LavaBridge-v0", "sac"), ("LavaBridge-v0", "auxss"),
+                                       ("LavaBridgeBend-v0", "sac"), ("LavaBridgeBend-v0", "auxss")]
+
+
+def test_a_sweep_over_tasks_trains_each_task_into_its_directory(config_file, tmp_path):
+    out = tmp_path / "out"
+    assert sweep.main(tiny_argv(out, config_file, "sac", "0", 150, "--envs", "LavaBridge-v0,LavaBridgeBend-v0")) == 0
+    for task, group in (("LavaBridge-v0", out / "sac-d500"), ("LavaBridgeBend-v0", out / "LavaBridgeBend-v0/sac-d500")):
+        assert json.loads((group / "seed0" / "config.json").read_text())["env_id"] == task
+        assert (group / "seed0" / "final.pt").exists()
+    assert record(out)["arguments"]["envs"] == ["LavaBridge-v0", "LavaBridgeBend-v0"]
+
+
 # --- local sweeps ----------------------------------------------------------------------------------
 def test_a_local_sweep_writes_every_run_as_a_single_run_would(finished, config_file):
     out, code = finished
@@ -362,7 +381,7 @@ def test_a_ray_address_that_accepts_but_never_answers_is_given_up_on(tmp_path):
 @pytest.mark.parametrize("change, message", [
     ({"--methods": "sac,dqn"}, "unknown method 'dqn'"),
     ({"--methods": "sac,sac"}, "given twice"),
-    ({"--seeds": "3-1"}, "range of non-negative seeds"),
+    ({"--seeds": "3-1"}, "expected a range of seeds low-high in [0, 4294967295], got '3-1'"),
     ({"--demos": "500,600"}, "unknown demo set '600'"),
     ({"--workers": "0"}, "positive integer"),
     ({"--address": "127.0.0.1:6379"}, "--address needs --backend ray"),
