@@ -3,24 +3,20 @@
 from __future__ import annotations
 
 import dataclasses
-import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import gymnasium
 import mujoco
 import numpy as np
-from gymnasium import spaces
 
-from lava_bridge_mj.checks import REAL_KINDS, check_integer, check_number, check_real_array
+from lava_bridge_mj.checks import check_integer
 from lava_bridge_mj.layout import Layout
-from lava_bridge_mj.mjcf import load_model
-from lava_bridge_mj.starts import START_NAMES, start_distribution
+from lava_bridge_mj.task_physics import LavaBridgeTask, as_vector
 
 MAX_EPISODE_STEPS = 500
 """The paper's horizon; `gymnasium.make` adds the TimeLimit."""
 RESET_OPTION_KEYS = ("state", "qpos", "qvel", "start")
-LAVA, GOAL = 1, 2
-"""What a contact with a geom means (0: nothing, e.g. a wall)."""
+RENDER_MODES = ("rgb_array",)
 
 
 class LavaBridgeEnv(gymnasium.Env):
@@ -67,11 +63,16 @@ class LavaBridgeEnv(gymnasium.Env):
     `Layout` (room and bridge sizes, goal, p0 blobs, ood spots, ball, damping, gear, timestep, frame
     skip), e.g. `gymnasium.make("LavaBridge-v0", bridge_width=0.4)`; or a whole `layout=Layout(...)`.
 
+    ## Attributes
+    `task`: the `LavaBridgeTask` (model, rewards, state checks, dynamics, start distributions) that
+    this env drives its `data` (a `mujoco.MjData`) with; `model`, `layout`, `frame_skip`, `dt`, the
+    rewards and `start_distributions` are the task's.
+
     ## Version History
     - v0: initial release.
     """
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 10}
 
     def __init__(
         self,
@@ -86,66 +87,72 @@ class LavaBridgeEnv(gymnasium.Env):
         render_quality: str = "fast",
         **layout_fields: Any,
     ):
-        if render_mode not in (None, *self.metadata["render_modes"]):
-            raise ValueError(f"render_mode={render_mode!r}; expected None or 'rgb_array'")
-        if not isinstance(render_quality, str) or render_quality not in ("fast", "high"):
-            raise ValueError(f"render_quality={render_quality!r}; expected 'fast' or 'high'")
-        unknown = set(layout_fields) - {f.name for f in dataclasses.fields(Layout)}
-        if unknown:
-            raise TypeError(f"unknown LavaBridgeEnv arguments {sorted(unknown)}; Layout fields and "
-                            "render_mode, layout, goal_reward, lava_reward, step_reward, width, height, "
-                            "render_quality are accepted")
-        # a reward is returned as given, so a string or NaN here would reach the learner unseen
-        self.goal_reward, self.lava_reward, self.step_reward = (
-            check_number(name, value, -math.inf, math.inf) for name, value in
-            (("goal_reward", goal_reward), ("lava_reward", lava_reward), ("step_reward", step_reward)))
-        if layout is not None and not isinstance(layout, Layout):
-            raise ValueError(f"layout must be a Layout, got {layout!r}")
-        self.layout = dataclasses.replace(layout or Layout(), **layout_fields)
-        self.render_mode = render_mode
-        self.render_quality = render_quality
-
-        self.model = load_model(self.layout)
-        # MuJoCo's off-screen framebuffer bounds a frame (the model's <global offwidth/offheight>); checked
-        # here, because the renderer is made at the first render and a size <= 0 aborts the process there
-        framebuffer = self.model.vis.global_
-        self.width = check_integer("width", width, 1, framebuffer.offwidth)
-        self.height = check_integer("height", height, 1, framebuffer.offheight)
+        arguments = check_env_arguments(render_mode, layout=layout, goal_reward=goal_reward, lava_reward=lava_reward,
+                                        step_reward=step_reward, width=width, height=height,
+                                        render_quality=render_quality, **layout_fields)
+        # the model, rewards, state checks, dynamics and start distributions, shared with the vector env
+        self.task = arguments.task
+        self.render_mode = arguments.render_mode
+        self.render_quality = arguments.render_quality
+        self.width, self.height = arguments.width, arguments.height
         self.data = mujoco.MjData(self.model)
-        self._probe = mujoco.MjData(self.model)  # scratch data: validate a state without touching self.data
-        self.frame_skip = self.layout.frame_skip
-        self.dt = self.layout.control_dt
-
-        geom_id = lambda name: mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, name)  # noqa: E731
-        # geom id -> what touching it means, so classifying all contacts is one fancy-index
-        self._touch_event = np.zeros(self.model.ngeom, dtype=np.int8)
-        self._touch_event[[geom_id(n) for n in self.layout.lava_pits]] = LAVA
-        self._touch_event[geom_id("goal")] = GOAL
-        self.start_distributions = {name: start_distribution(self.layout, name) for name in START_NAMES}
-
-        hx, hy = self.layout.half_extent
-        # Each axis's speed stays below gear / damping: the force's terminal velocity.
-        v = self.layout.top_speed
-        high = np.array([hx, hy, v, v])
-        self.observation_space = spaces.Box(-high, high, dtype=np.float64)
-        self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
+        self.observation_space = self.task.observation_space
+        self.action_space = self.task.action_space
         self._renderer = None
+
+    # --- the task's parts, read from it --------------------------------------------------------
+    @property
+    def layout(self) -> Layout:
+        """The geometry and physics this env was built from."""
+        return self.task.layout
+
+    @property
+    def model(self) -> mujoco.MjModel:
+        """The compiled MjModel (the task's)."""
+        return self.task.model
+
+    @property
+    def frame_skip(self) -> int:
+        """Physics steps per env step."""
+        return self.task.frame_skip
+
+    @property
+    def dt(self) -> float:
+        """Seconds of simulated time per env step."""
+        return self.task.dt
+
+    @property
+    def goal_reward(self) -> float:
+        """The reward on reaching the goal."""
+        return self.task.goal_reward
+
+    @property
+    def lava_reward(self) -> float:
+        """The reward on touching lava."""
+        return self.task.lava_reward
+
+    @property
+    def step_reward(self) -> float:
+        """The reward on every other step."""
+        return self.task.step_reward
+
+    @property
+    def start_distributions(self) -> dict:
+        """Start distribution by name ('p0', 'ood')."""
+        return self.task.start_distributions
 
     # --- named physics accessors ---------------------------------------------------------------
     def lava_contact(self, data: mujoco.MjData | None = None) -> bool:
         """True when the ball's footprint touches a lava pit, read from MuJoCo's contacts of `data`."""
-        return LAVA in self._touch_events(self.data if data is None else data)
+        return self.task.lava_contact(self.data if data is None else data)
 
     def goal_contact(self, data: mujoco.MjData | None = None) -> bool:
         """True when the ball's centre is within goal_radius of the goal, read from MuJoCo's contacts."""
-        return GOAL in self._touch_events(self.data if data is None else data)
-
-    def _touch_events(self, data: mujoco.MjData) -> np.ndarray:
-        return self._touch_event[data.contact.geom].ravel() if data.ncon else self._touch_event[:0]
+        return self.task.goal_contact(self.data if data is None else data)
 
     def get_state(self) -> np.ndarray:
         """The physics state (x, y, vx, vy): a copy, identical to the observation."""
-        return np.concatenate([self.data.qpos, self.data.qvel])
+        return self.task.observation(self.data)
 
     def set_state(self, qpos: Any, qvel: Any = (0.0, 0.0)) -> None:
         """Put the ball at `qpos` with velocity `qvel`, after checking the state is valid.
@@ -153,49 +160,15 @@ class LavaBridgeEnv(gymnasium.Env):
         Raises ValueError, leaving the current state untouched, for a misshapen or non-finite state,
         one outside the maze, overlapping a wall or touching lava.
         """
-        self._set_checked_state(*self._check_state(qpos, qvel))
-
-    def _set_checked_state(self, qpos: np.ndarray, qvel: np.ndarray, data: mujoco.MjData | None = None) -> None:
-        data = self.data if data is None else data
-        mujoco.mj_resetData(self.model, data)  # zero time, controls and solver state: deterministic
-        data.qpos[:] = qpos
-        data.qvel[:] = qvel
-        # step() expects position- and velocity-dependent quantities (contacts) to be current
-        mujoco.mj_forward(self.model, data)
-
-    def _check_state(self, qpos: Any, qvel: Any) -> tuple[np.ndarray, np.ndarray]:
-        qpos = self._as_vector("qpos", qpos)
-        qvel = self._as_vector("qvel", qvel)
-        hx, hy = self.layout.half_extent
-        x, y = qpos
-        # A ball may overlap a wall by less than its radius (soft contacts let a ball that hits a
-        # wall sink in by millimetres, and every visited state must reset); its centre may not.
-        if abs(x) > hx or abs(y) > hy:
-            raise ValueError(f"state position ({x:g}, {y:g}) is inside a wall or outside the maze: the ball's "
-                             f"centre must satisfy |x| <= {hx:g} and |y| <= {hy:g}")
-        v = self.layout.top_speed
-        if np.abs(qvel).max() > v:
-            raise ValueError(f"state velocity {qvel} exceeds the top speed {v:g} m/s on an axis (gear / damping)")
-        probe = self._probe
-        mujoco.mj_resetData(self.model, probe)
-        probe.qpos[:] = qpos
-        mujoco.mj_fwdPosition(self.model, probe)  # kinematics and collision only
-        if self.lava_contact(probe):
-            raise ValueError(f"state position ({x:g}, {y:g}) touches lava")
-        return qpos, qvel
-
-    @staticmethod
-    def _as_vector(name: str, value: Any, size: int = 2) -> np.ndarray:
-        return check_real_array(name, value, (size,)).astype(np.float64)  # a copy: the caller's array may change
+        self.task.set_state(self.data, *self.task.check_state(qpos, qvel))
 
     # --- gymnasium API -------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         start = self._parse_reset_options(options or {})  # raises before anything changes
         super().reset(seed=seed)
-        if isinstance(start, str):  # start distributions only hold valid states (Layout checks its discs)
-            state = self.start_distributions[start].sample(self.np_random)
-            start = (state[:2], state[2:])
-        self._set_checked_state(*start)
+        if isinstance(start, str):
+            start = self.task.sample_start(start, self.np_random)
+        self.task.set_state(self.data, *start)
         return self.get_state(), {"is_success": False, "lava": False}
 
     def _parse_reset_options(self, options: dict[str, Any]) -> str | tuple[np.ndarray, np.ndarray]:
@@ -211,48 +184,17 @@ class LavaBridgeEnv(gymnasium.Env):
         if "qvel" in options and "qpos" not in options:
             raise ValueError("reset option 'qvel' needs 'qpos' too")
         if "state" in options:
-            state = self._as_vector("state", options["state"], size=4)
-            return self._check_state(state[:2], state[2:])
+            state = as_vector("state", options["state"], size=4)
+            return self.task.check_state(state[:2], state[2:])
         if "qpos" in options:
-            return self._check_state(options["qpos"], options.get("qvel", (0.0, 0.0)))
-        name = options.get("start", "p0")
-        if not isinstance(name, str) or name not in self.start_distributions:
-            raise ValueError(f"unknown start distribution {name!r}; expected one of {START_NAMES}")
-        return name
+            return self.task.check_state(options["qpos"], options.get("qvel", (0.0, 0.0)))
+        return self.task.check_start_name(options.get("start", "p0"))
 
     def step(self, action):
-        reward, lava, success = self._advance(self.data, self._checked_action(action))
+        task = self.task
+        reward, lava, success = task.step(self.data, task.check_action(action))
         info = {"is_success": success, "lava": lava}
-        return self.get_state(), reward, lava or success, False, info
-
-    @staticmethod
-    def _checked_action(action: Any) -> np.ndarray:
-        array = np.asarray(action)
-        # the hot path: a dtype-kind test and two scalar tests cost less than check_real_array's
-        # np.isfinite, which only runs to word the error
-        if (array.dtype.kind in REAL_KINDS and array.shape == (2,)
-                and math.isfinite(array[0]) and math.isfinite(array[1])):
-            return array
-        return check_real_array("action", action, (2,))  # raises, naming what is wrong
-
-    def _advance(self, data: mujoco.MjData, action: np.ndarray) -> tuple[float, bool, bool]:
-        """One env step of `data` (frame_skip physics steps) under a checked action: (reward, lava, success).
-        The vector env steps each of its MjData through this too, so both share the task's dynamics."""
-        model = self.model
-        data.ctrl[:] = action  # MuJoCo clips to the actuators' ctrlrange [-1, 1]
-        lava = success = False
-        # mj_step split in two so contacts are current for the state just reached: lava and the
-        # goal are checked after every physics step, so a fast ball cannot cross a corner unseen.
-        for _ in range(self.frame_skip):
-            mujoco.mj_step2(model, data)
-            mujoco.mj_step1(model, data)
-            if data.ncon:  # most steps have no contact at all; walls are the common one
-                events = self._touch_events(data)
-                if events.any():
-                    lava, success = LAVA in events, GOAL in events
-                    break
-        reward = self.goal_reward if success else self.lava_reward if lava else self.step_reward
-        return reward, lava, success
+        return task.observation(self.data), reward, lava or success, False, info
 
     def render(self):
         if self.render_mode != "rgb_array":
@@ -281,3 +223,47 @@ class LavaBridgeEnv(gymnasium.Env):
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+
+
+class EnvArguments(NamedTuple):
+    """LavaBridgeEnv's arguments, checked: the task they define and the rendering settings."""
+
+    task: LavaBridgeTask
+    render_mode: str | None
+    width: int
+    height: int
+    render_quality: str
+
+
+def check_env_arguments(
+    render_mode: str | None = None,
+    *,
+    layout: Layout | None = None,
+    goal_reward: float = 1.0,
+    lava_reward: float = 0.0,
+    step_reward: float = 0.0,
+    width: int = 960,
+    height: int = 400,
+    render_quality: str = "fast",
+    **layout_fields: Any,
+) -> EnvArguments:
+    """LavaBridgeEnv's arguments checked and the task built from them; ValueError (TypeError for an
+    unknown argument) naming the first bad one. The vector env takes the same arguments through here."""
+    if render_mode not in (None, *RENDER_MODES):
+        raise ValueError(f"render_mode={render_mode!r}; expected None or 'rgb_array'")
+    if not isinstance(render_quality, str) or render_quality not in ("fast", "high"):
+        raise ValueError(f"render_quality={render_quality!r}; expected 'fast' or 'high'")
+    unknown = set(layout_fields) - {f.name for f in dataclasses.fields(Layout)}
+    if unknown:
+        raise TypeError(f"unknown LavaBridgeEnv arguments {sorted(unknown)}; Layout fields and "
+                        "render_mode, layout, goal_reward, lava_reward, step_reward, width, height, "
+                        "render_quality are accepted")
+    if layout is not None and not isinstance(layout, Layout):
+        raise ValueError(f"layout must be a Layout, got {layout!r}")
+    task = LavaBridgeTask(dataclasses.replace(layout or Layout(), **layout_fields), goal_reward=goal_reward,
+                          lava_reward=lava_reward, step_reward=step_reward)
+    # MuJoCo's off-screen framebuffer bounds a frame (the model's <global offwidth/offheight>); checked
+    # here, because the renderer is made at the first render and a size <= 0 aborts the process there
+    framebuffer = task.model.vis.global_
+    return EnvArguments(task, render_mode, check_integer("width", width, 1, framebuffer.offwidth),
+                        check_integer("height", height, 1, framebuffer.offheight), render_quality)

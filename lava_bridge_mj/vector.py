@@ -6,6 +6,8 @@ envs (tests/test_vector_env.py checks step by step): sub-env i is seeded with `s
 truncate at `max_episode_steps`, and the autoreset is gymnasium's default, next-step: the step after an
 episode ends resets that sub-env (from p0) and returns its first observation with reward 0. It saves
 what the generic wrapper pays for: K compiled models, K wrapper stacks, per-env info dictionaries.
+Each sub-env's MjData is stepped, reset and observed by `task`, the same `LavaBridgeTask` that a
+single env drives its one MjData with.
 
 Reset options (all optional, one of "state" / "start"):
     {"state": array (K, 4)}      reset sub-env i to state[i]
@@ -25,7 +27,8 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from lava_bridge_mj.checks import check_integer, check_real_array
-from lava_bridge_mj.lava_bridge import MAX_EPISODE_STEPS, LavaBridgeEnv
+from lava_bridge_mj.lava_bridge import MAX_EPISODE_STEPS, check_env_arguments
+from lava_bridge_mj.task_physics import LavaBridgeTask
 
 VECTOR_RESET_KEYS = ("state", "start", "reset_mask")
 
@@ -47,8 +50,8 @@ class LavaBridgeVectorEnv(VectorEnv):
         if "render_mode" in env_kwargs and env_kwargs["render_mode"] is not None:
             raise ValueError("LavaBridgeVectorEnv does not render; render a single LavaBridgeEnv instead")
         env_kwargs.pop("render_mode", None)
-        # the model, rewards, state checks and start distributions; it checks every env argument
-        self.task = LavaBridgeEnv(**env_kwargs)
+        # the model, rewards, state checks, dynamics and start distributions that every sub-env shares
+        self.task: LavaBridgeTask = check_env_arguments(**env_kwargs).task
         self.datas = [mujoco.MjData(self.task.model) for _ in range(num_envs)]
         self.single_observation_space = self.task.observation_space
         self.single_action_space = self.task.action_space
@@ -80,7 +83,7 @@ class LavaBridgeVectorEnv(VectorEnv):
             if self.autoreset[i]:
                 self._reset_one(i, "p0")
                 continue
-            rewards[i], lava[i], success[i] = task._advance(data, actions[i])
+            rewards[i], lava[i], success[i] = task.step(data, actions[i])
             self.episode_steps[i] += 1
         terminated = lava | success
         truncated = ~terminated & ~self.autoreset & (self.episode_steps >= self.max_episode_steps)
@@ -90,9 +93,8 @@ class LavaBridgeVectorEnv(VectorEnv):
     # --- pieces ---------------------------------------------------------------------------------
     def _reset_one(self, i: int, start: str | tuple[np.ndarray, np.ndarray]) -> None:
         if isinstance(start, str):
-            state = self.task.start_distributions[start].sample(self.rngs[i])
-            start = (state[:2], state[2:])
-        self.task._set_checked_state(*start, data=self.datas[i])
+            start = self.task.sample_start(start, self.rngs[i])
+        self.task.set_state(self.datas[i], *start)
         self.episode_steps[i] = 0
 
     def _parse_reset_options(self, options: dict[str, Any]) -> tuple[np.ndarray, list]:
@@ -112,11 +114,9 @@ class LavaBridgeVectorEnv(VectorEnv):
         if "state" in options:
             # finiteness is checked per reset row below: rows of the other sub-envs are ignored
             states = check_real_array("reset option 'state'", options["state"], (self.num_envs, 4), finite=False)
-            starts = [self.task._check_state(s[:2], s[2:]) if m else None for s, m in zip(states, mask)]
+            starts = [self.task.check_state(s[:2], s[2:]) if m else None for s, m in zip(states, mask)]
         else:
-            name = options.get("start", "p0")
-            self.task._parse_reset_options({"start": name})  # the single env's check and message
-            starts = [name] * self.num_envs
+            starts = [self.task.check_start_name(options.get("start", "p0"))] * self.num_envs
         return mask, starts
 
     def _seeds(self, seed: int | list[int | None] | None) -> list[int | None]:
@@ -130,7 +130,8 @@ class LavaBridgeVectorEnv(VectorEnv):
         return [None if s is None else check_integer("seed", s, 0) for s in seed]
 
     def _observations(self) -> np.ndarray:
-        return np.stack([np.concatenate([d.qpos, d.qvel]) for d in self.datas])
+        observation = self.task.observation
+        return np.stack([observation(d) for d in self.datas])
 
     def _info(self, success: np.ndarray, lava: np.ndarray) -> dict[str, np.ndarray]:
         every = np.ones(self.num_envs, dtype=bool)  # gymnasium's vector info: a value and a presence mask

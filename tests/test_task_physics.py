@@ -1,0 +1,102 @@
+"""LavaBridgeTask: the one piece of physics and rules that LavaBridgeEnv and LavaBridgeVectorEnv share."""
+
+import ast
+from pathlib import Path
+
+import gymnasium
+import mujoco
+import numpy as np
+import pytest
+
+import lava_bridge_mj
+from lava_bridge_mj import ENV_ID, TASKS, LavaBridgeTask, LavaBridgeVectorEnv, Layout
+
+PACKAGE = Path(lava_bridge_mj.__file__).parent
+
+
+def test_both_envs_are_built_on_the_task():
+    env = gymnasium.make(ENV_ID, goal_reward=2.0, bridge_width=0.4).unwrapped
+    envs = LavaBridgeVectorEnv(2, goal_reward=2.0, bridge_width=0.4)
+    for task in (env.task, envs.task):
+        assert isinstance(task, LavaBridgeTask)
+        assert task.goal_reward == 2.0 and task.layout.bridge_width == 0.4
+    # the env's public attributes are the task's
+    assert env.model is env.task.model and env.layout is env.task.layout
+    assert (env.frame_skip, env.dt, env.lava_reward) == (env.task.frame_skip, env.task.dt, env.task.lava_reward)
+    assert env.observation_space == env.task.observation_space and env.action_space == env.task.action_space
+
+
+@pytest.mark.parametrize("env_id", list(TASKS))
+def test_a_task_on_its_own_mjdata_steps_as_the_env_does(env_id):
+    """Driving an MjData with the task's own methods gives the env's observations, rewards and ends
+    bit for bit, on every task of the suite."""
+    env = gymnasium.make(env_id).unwrapped
+    task = LavaBridgeTask(TASKS[env_id], goal_reward=1.0, lava_reward=0.0, step_reward=0.0)
+    data = mujoco.MjData(task.model)
+    rng, task_rng = np.random.default_rng(3), np.random.default_rng(4)
+    obs, _ = env.reset(seed=5)
+    env_rng = np.random.default_rng(5)
+    task.set_state(data, *task.sample_start("p0", env_rng))
+    np.testing.assert_array_equal(task.observation(data), obs)
+    ends = 0
+    for _ in range(300):
+        action = rng.uniform(-0.5, 0.5, 2) + (0.6, 0.0)  # eastwards, into lava or across: episodes end
+        obs, reward, terminated, _, info = env.step(action)
+        task_reward, lava, success = task.step(data, task.check_action(action))
+        np.testing.assert_array_equal(task.observation(data), obs)
+        assert (task_reward, lava, success, lava or success) == (reward, info["lava"], info["is_success"], terminated)
+        assert task.lava_contact(data) == env.lava_contact() and task.goal_contact(data) == env.goal_contact()
+        if terminated:
+            ends += 1
+            state = task.sample_start("ood", task_rng)
+            env.set_state(*state)
+            task.set_state(data, *task.check_state(*state))
+    assert ends > 0, "no episode ended: the resets from a checked state went untested"
+
+
+def test_check_state_refuses_lava_and_leaves_the_callers_data_alone():
+    task = LavaBridgeTask(Layout())
+    data = mujoco.MjData(task.model)
+    task.set_state(data, *task.check_state((-4.5, 0.0)))
+    before = task.observation(data)
+    with pytest.raises(ValueError, match=r"state position \(0, 1\) touches lava"):
+        task.check_state((0.0, 1.0), (0.0, 0.0))
+    with pytest.raises(ValueError, match="qvel must be finite"):
+        task.check_state((-4.5, 0.0), (np.nan, 0.0))
+    np.testing.assert_array_equal(task.observation(data), before)
+    qpos, qvel = task.check_state([-4, 0], [1, 0])
+    assert qpos.dtype == qvel.dtype == np.float64 and list(qpos) == [-4.0, 0.0]
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"layout": "wide"}, "layout must be a Layout, got 'wide'"),
+    ({"goal_reward": "x"}, "goal_reward must be a finite number, got 'x'"),
+])
+def test_bad_task_arguments_raise_naming_them(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        LavaBridgeTask(**{"layout": Layout(), **kwargs})
+
+
+def test_check_start_name_names_the_known_ones():
+    task = LavaBridgeTask(Layout())
+    assert task.check_start_name("ood") == "ood"
+    with pytest.raises(ValueError, match=r"unknown start distribution 'far'; expected one of \('p0', 'ood'\)"):
+        task.check_start_name("far")
+
+
+def private_calls_on_other_objects(tree: ast.AST) -> list[str]:
+    """`x._name(...)` calls where x is not self or cls: a private method used from outside its class."""
+    found = []
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                and node.func.attr.startswith("_") and not node.func.attr.startswith("__")
+                and not (isinstance(node.func.value, ast.Name) and node.func.value.id in ("self", "cls"))):
+            found.append(f"line {node.lineno}: {ast.unparse(node.func)}")
+    return found
+
+
+def test_no_module_of_the_env_calls_private_methods_of_another_object():
+    """The envs share the task through its public methods only."""
+    offenders = {path.name: calls for path in sorted(PACKAGE.glob("*.py"))
+                 if (calls := private_calls_on_other_objects(ast.parse(path.read_text())))}
+    assert offenders == {}
