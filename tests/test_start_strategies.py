@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import lava_bridge_mj  # noqa: F401  (registers LavaBridge-v0)
-from lava_bridge_mj.agents.start_state_wrapper import StartStateWrapper
+from lava_bridge_mj.agents.start_state_wrapper import StartSelector, StartStateWrapper
 from lava_bridge_mj.agents.start_strategies import (
     NO_STATE,
     STRATEGY_NAMES,
@@ -406,6 +406,25 @@ def test_wrapper_resets_real_env_to_state_and_reports_lava_episode_length():
         steps += 1
     assert steps == 3 and info["lava"] and reward == env.unwrapped.lava_reward
     assert strategy.weights[0] == pytest.approx((500 - 3) / 500)
+
+
+def test_auxss_default_horizon_is_the_step_limit_of_every_registered_task():
+    horizon = AuxSS(THREE_STATES).horizon
+    assert horizon == lava_bridge_mj.MAX_EPISODE_STEPS
+    assert {gymnasium.spec(task).max_episode_steps for task in lava_bridge_mj.TASKS} == {horizon}
+
+
+def test_wrapper_refuses_a_strategy_whose_horizon_differs_from_the_env_limit():
+    short = gymnasium.make("LavaBridge-v0", max_episode_steps=200)
+    with pytest.raises(ValueError, match=r"^AuxSS horizon=500 differs from the env's max_episode_steps=200; "
+                                         r"build it with horizon=200$"):
+        StartStateWrapper(short, AuxSS(THREE_STATES))
+    with pytest.raises(ValueError, match="horizon=100 differs from the env's max_episode_steps=500"):
+        StartSelector(AuxSS(THREE_STATES, horizon=100), max_episode_steps=500)
+    StartStateWrapper(short, AuxSS(THREE_STATES, horizon=200))
+    StartStateWrapper(short, UniformSS(THREE_STATES))  # no horizon: nothing to agree on
+    StartStateWrapper(CountdownEnv(), AuxSS(THREE_STATES, horizon=100))  # no spec, no known limit
+    StartSelector(AuxSS(THREE_STATES, horizon=100))
 
 
 def test_wrapper_reports_each_chosen_episode_once_with_success():
