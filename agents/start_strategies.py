@@ -281,9 +281,10 @@ class OmegaSS(StartStrategy):
         states: (n, 4) candidate start states.
         omega: per state, the probability that k uniformly random actions do not end in failure
             (`estimate_random_policy_safety` computes it), each in [0, 1].
-        clamp: floor on omega in (0, 1]. Default 0.05: a state certain to fail is at most 20x more
-            likely than a perfectly safe one, and it sits above the 1/32 resolution of the default
-            32 rollouts, so one lucky survival does not change a doomed state's weight.
+        clamp: floor on omega in (0, 1], so every weight lies in [1, 1 / clamp]. Default 0.05: a state
+            certain to fail is at most 20x more likely than a perfectly safe one, and the floor sits
+            above the 1/32 resolution of the default 32 rollouts, so one lucky survival does not change
+            a doomed state's weight.
     """
 
     name = "omega_ss"
@@ -350,12 +351,14 @@ class GoalDistSS(StartStrategy):
     Args:
         states: (n, 4) candidate start states.
         goal: the goal position (x, y); LavaBridge-v0's is `env.unwrapped.layout.goal`.
-        temperature: T at the first episode (m). Default 0.5: a state 2 m further from the goal is
-            e^4 ~ 55x less likely.
-        temperature_growth: factor per finished episode, >= 1 (1 keeps T fixed). Default 1.005: T grows 100x,
-            from 0.5 m to 50 m, in about 920 episodes, well inside a 300k-step run.
-        max_temperature: the cap on T (m). Default 50: across LavaBridge-v0's ~10 m from the start
-            room's far wall to the goal, weights then differ by at most e^0.2 ~ 1.2x.
+        temperature: T before the first episode (m), > 0. Default 0.5: a state 2 m further from the
+            goal is e^4 ~ 55x less likely.
+        temperature_growth: factor per finished episode, >= 1 (1 keeps T fixed). Default 1.005: T
+            grows 100x, from 0.5 m to 50 m, in about 920 episodes, well inside a 300k-step run; chosen
+            on tuning seeds (docs/calibration.md, section 5).
+        max_temperature: the cap on T (m), >= temperature; T stays there once reached. Default 50:
+            across LavaBridge-v0's ~10 m from the start room's far wall to the goal, weights then
+            differ by at most e^0.2 ~ 1.2x.
     """
 
     name = "goaldist_ss"
