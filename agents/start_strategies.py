@@ -198,9 +198,10 @@ class AuxSS(StartStrategy):
             `W[i]` that fraction of the way towards it (an exponential moving average over episodes).
         kernel_dims: "full" (the paper) measures distance on all four components; "position" on
             (x, y) only.
-        timeout_weight: None (the paper) scores a timeout by the formula, `delta`. A number in
-            [delta, 1] is the new `W[i]` after a timeout instead (1.0: like an immediate failure). A
-            timeout is `L >= H` without success, so a lava touch on the very last step counts as one.
+        timeout_weight: None (the paper) scores a timeout by the formula, `max((H - H) / H, delta) =
+            delta`. A number in [delta, 1] is the new value after a timeout instead (1.0: like an
+            immediate failure). A timeout is `L >= H` without success, so a lava touch on the very
+            last step counts as one.
     """
 
     name = "auxss"
