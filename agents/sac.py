@@ -34,10 +34,8 @@ class SACConfig:
     """SAC hyperparameters. Defaults follow the paper's protocol where it gives one."""
 
     hidden_sizes: tuple[int, ...] = (64, 64)
-    """Hidden layer widths of the actor and of each critic. 64 units learn LavaBridge-v0 at about 5x the
-    update rate of 256 units on 2 CPU cores; AuxSS on tuning seeds 100-102 reached p0 success 0.8 by 60k
-    steps on 2 of 3 seeds at 64 units, 1 of 3 at 128, 3 of 3 at 256: no trend three seeds can tell from
-    noise (README, Speed)."""
+    """Hidden layer widths of the actor and of each critic. 64 units update about 5x as fast as 256 on
+    2 CPU cores, and tuning runs at 64, 128 and 256 units did not separate the widths (README, Speed)."""
     lr: float = 3e-4
     """Adam learning rate of actor, critics and entropy coefficient."""
     gamma: float = 0.99
@@ -52,18 +50,18 @@ class SACConfig:
     """Env steps of uniform random actions before the first update (two full-length episodes'
     worth of data so the first minibatches are not a handful of transitions); then one update per step."""
     initial_alpha: float = 0.01
-    """Starting entropy coefficient. Not the usual 1.0: on a prototype of this task alpha=1.0 let the
-    entropy bonus lift all Q-values to about +11, far above the +-1 sparse rewards, so ending the episode
-    at the goal looked worse than wandering and the agent learned to avoid it; 0.01 with automatic
-    tuning fixed it (Q about 0.3-0.8)."""
+    """Entropy coefficient alpha before the first update; automatic tuning then adapts it. Not the
+    usual 1.0: with a single +1 reward a large entropy bonus outweighs the goal, and 0.1 and 1.0 learned
+    far slower on the tuning seeds (docs/calibration.md, section 6)."""
     target_entropy: float | None = None
-    """Entropy the automatic tuning of alpha aims at; None means -act_dim (the SAC paper's heuristic)."""
+    """Policy entropy (nats, summed over action dimensions) that the tuning of alpha holds: alpha rises
+    while the policy's entropy is below it and falls while above. None means -act_dim, the SAC
+    paper's heuristic (-2 on LavaBridge-v0); any finite number is accepted."""
     critic_layer_norm: bool = False
-    """LayerNorm after each hidden layer of the critics (RLPD, Ball et al. 2023), which bounds how far
-    Q can extrapolate to actions the data never shows. Off by default, as in plain SAC and the paper's
-    HySAC; measured here, HySAC from p0 diverges without it (mean Q, which the +1 goal reward caps near 1,
-    reached 72 to 1e7 by 100k steps on 5 of 5 seeds; docs/calibration.md), so it is the setting to try when
-    offline transitions cover states the online data never reaches."""
+    """LayerNorm after each hidden layer of the critics (RLPD, Ball et al. 2023), which bounds how far Q
+    can extrapolate to actions the data never shows. Off by default, as in plain SAC and the paper's
+    HySAC; the setting to use when offline transitions cover states the online data never reaches,
+    where HySAC's critic otherwise diverges (docs/calibration.md, section 2)."""
 
     def __post_init__(self) -> None:
         self.hidden_sizes = check_hidden_sizes(self.hidden_sizes)

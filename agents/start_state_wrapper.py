@@ -22,6 +22,13 @@ def _start_rng(seed: int | None) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
 
 
+def check_horizon(strategy: StartStrategy, max_episode_steps: int | None) -> None:
+    """ValueError unless `strategy.horizon` is None, `max_episode_steps` is None, or the two agree."""
+    if strategy.horizon is not None and max_episode_steps is not None and strategy.horizon != max_episode_steps:
+        raise ValueError(f"{type(strategy).__name__} horizon={strategy.horizon} differs from the env's "
+                         f"max_episode_steps={max_episode_steps}; build it with horizon={max_episode_steps}")
+
+
 class StartSelector:
     """One env's start choices from `strategy`, and the reports of the episodes they started.
 
@@ -29,9 +36,15 @@ class StartSelector:
     None for the env's own reset (the strategy returned `NO_STATE`, p0). `step(ended, success)` counts
     one env step; when the episode ends, the strategy gets `update(index, length, success=...)`,
     once. `external_start()` marks an episode the strategy did not choose: it is not reported.
+
+    `max_episode_steps` is the env's step limit where it has one: a strategy whose `horizon`
+    differs from it is refused with a ValueError naming both, since it would score every episode
+    length on the wrong scale.
     """
 
-    def __init__(self, strategy: StartStrategy, seed: int | None = None):
+    def __init__(self, strategy: StartStrategy, seed: int | None = None, *,
+                 max_episode_steps: int | None = None):
+        check_horizon(strategy, max_episode_steps)
         self.strategy = strategy
         self._rng = _start_rng(seed)
         self.start_index = NO_STATE
@@ -86,13 +99,16 @@ class StartStateWrapper(gymnasium.Wrapper):
 
     Args:
         env: any gymnasium env whose `reset` accepts `options={"state": s}`.
-        strategy: a start strategy (`make_start_strategy`); its `states` are the candidates.
+        strategy: a start strategy (`make_start_strategy`); its `states` are the candidates. Its
+            `horizon`, where it has one, must equal the env's step limit (`env.spec.max_episode_steps`,
+            set by `gymnasium.make`); ValueError otherwise.
         seed: seeds the wrapper's generator; `reset(seed=...)` reseeds it (and the env).
     """
 
     def __init__(self, env: gymnasium.Env, strategy: StartStrategy, seed: int | None = None):
         super().__init__(env)
-        self.selector = StartSelector(strategy, seed)
+        limit = env.spec.max_episode_steps if env.spec is not None else None
+        self.selector = StartSelector(strategy, seed, max_episode_steps=limit)
 
     @property
     def strategy(self) -> StartStrategy:

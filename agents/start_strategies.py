@@ -24,6 +24,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from lava_bridge_mj.lava_bridge import MAX_EPISODE_STEPS
+
 from .checks import check_integer, check_number, check_real_array
 
 NO_STATE = -1
@@ -69,6 +71,9 @@ class StartStrategy:
     """
 
     name = ""
+    horizon: int | None = None
+    """The env's step limit that `update` scores episode lengths against (AuxSS's H); None for a
+    strategy that does not depend on it. `StartStateWrapper` checks it against the env's limit."""
 
     def __init__(self, states: Any):
         self._states = check_states(states)
@@ -168,39 +173,35 @@ class AuxSS(StartStrategy):
 
     `W` starts at ones, so every state is tried before its weight drops. After an episode of length
     `L` from state `i`, `W[i]` becomes `max((H - L) / H, delta)` and the kernel `lam` spreads that
-    value to nearby states: `W = (1 - lam) * W + lam * W[i]`. `weights` is `W` itself (unnormalised).
+    value to nearby states: `W = (1 - lam) * W + lam * W[i]`. `weights` is `W` itself (unnormalised);
+    every weight stays in [delta, 1]. Defaults are the paper's update with delta and sigma chosen on
+    tuning seeds (docs/calibration.md, section 3); docs/design.md, section 2, explains the kernel.
 
     Args:
         states: (n, 4) candidate start states (x, y, vx, vy).
-        horizon: H, the episode step limit (500 on LavaBridge-v0).
-        delta: floor on `W[i]` in (0, 1], so a state whose episodes always time out stays sampleable.
-            Placeholder default 0.05: a state that always times out is sampled 20x less often than
-            one that fails at once.
-        sigma: width of the Gaussian kernel `lam_j = exp(-||S_j - S_i||^2 / (2 sigma^2))` on scaled
-            states (see `state_scale`). `lam_i = 1` and 0 < lam <= 1, so weights stay in [delta, 1].
-            (The paper prints `exp(+...) / (sqrt(2 pi) sigma)`: a typo whose lam can exceed 1 and
-            drive weights negative; docs/design.md, section 2.) lam > 0.5 within 1.18 sigma. Placeholder
-            default 0.3: lam > 0.5 within 0.35 m (or m/s), a few consecutive steps of a trajectory
-            at bridge speeds of about 2 m/s (0.2 m per 0.1 s step); `effective_neighbourhood()`
-            reports what it means for a given demo set.
-        state_scale: per-component divisors (x, y, vx, vy) applied before distances. Default
-            (1, 1, 1, 1): raw metres and m/s. On LavaBridge-v0 (mass 1 kg, damping 1 N s/m) velocity
-            decays with a 1 s time constant, so 1 m/s of velocity moves a coasting ball 1 m further:
-            the raw numbers already weigh position and velocity alike by where the ball ends up.
-            Other tasks should pass their own scales.
-        count_successes: the paper counts every termination, goal or lava, in `L` (True). False is
-            the reviewers' ablation: goal-reaching episodes leave `W` unchanged, so a short successful
-            episode does not mark its start as unsafe.
+        horizon: H, in env steps: the step limit at which the env truncates an episode. It must equal
+            the env's `max_episode_steps`; the default is `MAX_EPISODE_STEPS` (500), the limit of every
+            registered task, and `StartStateWrapper` refuses an env whose limit differs.
+        delta: floor on `W[i]`, in (0, 1]. Default 0.05: a state whose episodes always time out stays
+            sampled, 1/20 as often as one whose episodes fail at once.
+        sigma: width of the Gaussian kernel `lam_j = exp(-||S_j - S_i||^2 / (2 sigma^2))`, in units of
+            the scaled state (see `state_scale`); `lam_i = 1` and 0 < lam <= 1. Default 0.3: lam > 0.5
+            within 1.18 sigma = 0.35 m (or m/s), so one episode informs a few consecutive steps of a
+            demo trajectory; `effective_neighbourhood()` counts how many states that is.
+        state_scale: per-component divisors (x, y, vx, vy) applied before distances, all > 0. Default
+            (1, 1, 1, 1): metres and m/s, which weigh a velocity by the distance it carries a coasting
+            ball when ball_mass / damping = 1 s (every task but LavaBridgeLowDamping-v0). For another
+            ratio, (1, 1, damping / ball_mass, damping / ball_mass) keeps that meaning.
+        count_successes: True (the paper) counts every termination, goal or lava, in `L`; False
+            leaves `W` unchanged after an episode that reached the goal.
         ema: None (the paper) overwrites `W[i]` with the new value; a number in (0, 1] instead moves
             `W[i]` that fraction of the way towards it (an exponential moving average over episodes).
         kernel_dims: "full" (the paper) measures distance on all four components; "position" on
             (x, y) only.
-        timeout_weight: None (the paper) scores an episode that runs the whole horizon without
-            reaching the goal like any other, `max((H - H) / H, delta) = delta`: the start looks safe
-            and is rarely drawn again. A number in [delta, 1] is the target for such timeouts
-            instead; 1.0 scores a timeout like an immediate failure, the test of whether AuxSS is slow
-            because it stops drawing the start-room states it cannot yet solve (docs/results.md). A
-            timeout is `L >= H` without success, so a lava touch on the very last step counts as one.
+        timeout_weight: None (the paper) scores a timeout by the formula, `max((H - H) / H, delta) =
+            delta`. A number in [delta, 1] is the new value after a timeout instead (1.0: like an
+            immediate failure). A timeout is `L >= H` without success, so a lava touch on the very
+            last step counts as one.
     """
 
     name = "auxss"
@@ -208,7 +209,7 @@ class AuxSS(StartStrategy):
     def __init__(
         self,
         states: Any,
-        horizon: int = 500,
+        horizon: int = MAX_EPISODE_STEPS,
         delta: float = 0.05,
         sigma: float = 0.3,
         state_scale: Sequence[float] = (1.0, 1.0, 1.0, 1.0),
@@ -281,9 +282,10 @@ class OmegaSS(StartStrategy):
         states: (n, 4) candidate start states.
         omega: per state, the probability that k uniformly random actions do not end in failure
             (`estimate_random_policy_safety` computes it), each in [0, 1].
-        clamp: floor on omega in (0, 1]. Default 0.05: a state certain to fail is at most 20x more
-            likely than a perfectly safe one, and it sits above the 1/32 resolution of the default
-            32 rollouts, so one lucky survival does not change a doomed state's weight.
+        clamp: floor on omega in (0, 1], so every weight lies in [1, 1 / clamp]. Default 0.05: a state
+            certain to fail is at most 20x more likely than a perfectly safe one, and the floor sits
+            above the 1/32 resolution of the default 32 rollouts, so one lucky survival does not change
+            a doomed state's weight.
     """
 
     name = "omega_ss"
@@ -350,12 +352,14 @@ class GoalDistSS(StartStrategy):
     Args:
         states: (n, 4) candidate start states.
         goal: the goal position (x, y); LavaBridge-v0's is `env.unwrapped.layout.goal`.
-        temperature: T at the first episode (m). Default 0.5: a state 2 m further from the goal is
-            e^4 ~ 55x less likely.
-        temperature_growth: factor per finished episode, >= 1 (1 keeps T fixed). Default 1.005: T grows 100x,
-            from 0.5 m to 50 m, in about 920 episodes, well inside a 300k-step run.
-        max_temperature: the cap on T (m). Default 50: across LavaBridge-v0's ~10 m from the start
-            room's far wall to the goal, weights then differ by at most e^0.2 ~ 1.2x.
+        temperature: T before the first episode (m), > 0. Default 0.5: a state 2 m further from the
+            goal is e^4 ~ 55x less likely.
+        temperature_growth: factor per finished episode, >= 1 (1 keeps T fixed). Default 1.005: T
+            grows 100x, from 0.5 m to 50 m, in about 920 episodes, well inside a 300k-step run; chosen
+            on tuning seeds (docs/calibration.md, section 5).
+        max_temperature: the cap on T (m), >= temperature; T stays there once reached. Default 50:
+            across LavaBridge-v0's ~10 m from the start room's far wall to the goal, weights then
+            differ by at most e^0.2 ~ 1.2x.
     """
 
     name = "goaldist_ss"

@@ -135,6 +135,22 @@ def test_sac_td_target_bootstraps_truncated_but_not_terminated_transitions():
     assert abs(soft_value[0].item()) > 1e-3  # otherwise the first check could not tell the two apart
 
 
+# --- the entropy target: which way alpha moves ------------------------------------------------------
+
+@pytest.mark.parametrize("target_entropy", [50.0, -50.0, None])
+def test_target_entropy_decides_which_way_alpha_moves(target_entropy):
+    # The gradient of the alpha loss -log_alpha * (log pi + target) is entropy - target, and Adam's first
+    # step is lr * g / (|g| + eps): log alpha moves by lr, up while the entropy is below the target and
+    # down while above it. None is -act_dim = -2.
+    agent = SAC(4, 2, dataclasses.replace(SMALL, target_entropy=target_entropy), seeds=[0])
+    assert agent.target_entropy == (-2.0 if target_entropy is None else target_entropy)
+    before = agent.log_alpha.item()
+    entropy = agent.update(stack_batches([filled_buffer().sample(64, np.random.default_rng(0))]))["entropy"][0]
+    assert -10 < entropy < 10  # a fresh tanh-Gaussian policy: far from +-50
+    expected_move = SMALL.lr * float(np.sign(agent.target_entropy - entropy))
+    assert agent.log_alpha.item() - before == pytest.approx(expected_move, abs=1e-6)
+
+
 # --- networks --------------------------------------------------------------------------------------
 
 def test_mlp_and_twin_q_shapes():

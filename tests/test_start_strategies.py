@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import lava_bridge_mj  # noqa: F401  (registers LavaBridge-v0)
-from lava_bridge_mj.agents.start_state_wrapper import StartStateWrapper
+from lava_bridge_mj.agents.start_state_wrapper import StartSelector, StartStateWrapper
 from lava_bridge_mj.agents.start_strategies import (
     NO_STATE,
     STRATEGY_NAMES,
@@ -190,6 +190,18 @@ def test_zero_weight_state_is_never_sampled():
 
 
 # --- OmegaSS ----------------------------------------------------------------------------------
+def test_omega_ss_clamp_sets_the_largest_weight():
+    # omega 0.5, 0.25, 0: the default floor 0.05 gives weights 2, 4, 20; a floor of 0.4 gives 2, 2.5, 2.5
+    np.testing.assert_allclose(OmegaSS(THREE_STATES, omega=[0.5, 0.25, 0.0]).weights, [2.0, 4.0, 20.0], rtol=1e-12)
+    np.testing.assert_allclose(OmegaSS(THREE_STATES, omega=[0.5, 0.25, 0.0], clamp=0.4).weights,
+                               [2.0, 2.5, 2.5], rtol=1e-12)
+    # and with the omega estimated by rollouts: CountdownEnv's first state always fails within k = 4
+    states = np.array([[2.0, -1.0, 0, 0], [9.0, -1.0, 0, 0]])
+    estimated = make_start_strategy("omega_ss", states, env=CountdownEnv(), rollouts=3, clamp=0.25)
+    np.testing.assert_allclose(estimated.weights, [4.0, 1.0], rtol=1e-12)
+    assert strategy_settings("omega_ss", env=CountdownEnv(), clamp=0.25)["clamp"] == 0.25
+
+
 def test_omega_ss_ranks_a_state_over_lava_above_open_space():
     env = gymnasium.make("LavaBridge-v0")
     states = np.array([[0.0, 0.0, 0.0, 2.0],    # on the bridge, sliding sideways into lava at 2 m/s
@@ -260,6 +272,19 @@ def test_goaldist_moves_from_goal_heavy_to_near_uniform():
     late = np.exp(-distances / 50.0)
     np.testing.assert_allclose(goaldist.probabilities, late / late.sum(), rtol=1e-12)
     np.testing.assert_allclose(goaldist.probabilities, 0.25, atol=0.02)
+
+
+def test_goaldist_temperature_starts_the_schedule_and_max_temperature_ends_it():
+    # T = min(2 * 3 ** episodes, 10): 2, 6, then 10 for good; weights exp(-d / T) over d = 0, 1, 3
+    distances = np.array([0.0, 1.0, 3.0])
+    states = np.stack([-distances, np.zeros(3), np.zeros(3), np.zeros(3)], axis=1)
+    goaldist = GoalDistSS(states, goal=(0.0, 0.0), temperature=2.0, temperature_growth=3.0, max_temperature=10.0)
+    for temperature in (2.0, 6.0, 10.0, 10.0):
+        assert goaldist.temperature == pytest.approx(temperature, rel=1e-12)
+        np.testing.assert_allclose(goaldist.weights, np.exp(-distances / temperature), rtol=1e-12)
+        goaldist.update(0, 10)
+    with pytest.raises(ValueError, match=r"^max_temperature=1.0 must be >= temperature=2.0$"):
+        GoalDistSS(states, goal=(0.0, 0.0), temperature=2.0, max_temperature=1.0)
 
 
 # --- persistence ------------------------------------------------------------------------------
@@ -406,6 +431,25 @@ def test_wrapper_resets_real_env_to_state_and_reports_lava_episode_length():
         steps += 1
     assert steps == 3 and info["lava"] and reward == env.unwrapped.lava_reward
     assert strategy.weights[0] == pytest.approx((500 - 3) / 500)
+
+
+def test_auxss_default_horizon_is_the_step_limit_of_every_registered_task():
+    horizon = AuxSS(THREE_STATES).horizon
+    assert horizon == lava_bridge_mj.MAX_EPISODE_STEPS
+    assert {gymnasium.spec(task).max_episode_steps for task in lava_bridge_mj.TASKS} == {horizon}
+
+
+def test_wrapper_refuses_a_strategy_whose_horizon_differs_from_the_env_limit():
+    short = gymnasium.make("LavaBridge-v0", max_episode_steps=200)
+    with pytest.raises(ValueError, match=r"^AuxSS horizon=500 differs from the env's max_episode_steps=200; "
+                                         r"build it with horizon=200$"):
+        StartStateWrapper(short, AuxSS(THREE_STATES))
+    with pytest.raises(ValueError, match="horizon=100 differs from the env's max_episode_steps=500"):
+        StartSelector(AuxSS(THREE_STATES, horizon=100), max_episode_steps=500)
+    StartStateWrapper(short, AuxSS(THREE_STATES, horizon=200))
+    StartStateWrapper(short, UniformSS(THREE_STATES))  # no horizon: nothing to agree on
+    StartStateWrapper(CountdownEnv(), AuxSS(THREE_STATES, horizon=100))  # no spec, no known limit
+    StartSelector(AuxSS(THREE_STATES, horizon=100))
 
 
 def test_wrapper_reports_each_chosen_episode_once_with_success():
