@@ -313,7 +313,7 @@ class SeedRun:
         self.strategy = make_start_strategy(name, None if name == "p0" else self.states, **params)
         self.strategy_settings = strategy_settings(name, **params)  # what provenance.json records
         self.envs, self.index = envs, index  # this seed's env is sub-env `index` of the batch's `envs`
-        self.selector = StartSelector(self.strategy, seed)
+        self.selector = StartSelector(self.strategy, seed, max_episode_steps=envs.max_episode_steps)
         self.buffer = ReplayBuffer(config.sac.buffer_size, 4, 2)
         self.offline = offline  # the demo transitions (HySAC, JSRL's guide, BC, IQL), shared read-only by the batch
         self.curriculum = JSRLCurriculum(config.jsrl) if config.method == "jsrl" else None

@@ -530,3 +530,11 @@ def test_a_run_recorded_before_env_id_existed_still_resumes(finished_run, tmp_pa
     assert not dataclasses.replace(tiny_config(steps=300), env_id="LavaBridgeNarrow-v0").continues(saved)
     train(tiny_config(steps=400), out, resume=True, progress=False)
     assert json.loads((out / "config.json").read_text())["env_id"] == "LavaBridge-v0"
+
+
+def test_an_auxss_horizon_other_than_the_time_limit_is_refused_before_training(tmp_path):
+    """AuxSS scores an episode by its length against its horizon: a horizon that is not the env's
+    500-step limit would silently mis-score every timeout."""
+    with pytest.raises(ValueError, match="AuxSS horizon=200 differs from the env's max_episode_steps=500"):
+        train(tiny_config(steps=100, strategy={"horizon": 200}), tmp_path / "run", progress=False)
+    assert not (tmp_path / "run").exists()
