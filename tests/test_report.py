@@ -568,8 +568,14 @@ def test_an_interrupted_report_leaves_out_as_it_was(tmp_path, capsys, monkeypatc
     assert not (tmp_path / "out").exists()
 
 
-def test_report_refuses_a_seed_range_it_would_take_hours_to_list(tmp_path, capsys):
+@pytest.mark.parametrize("argv, message", [
+    (["--seeds", "0-99999999"], "expected at most 1,000 seeds"),  # parse_seeds would take hours
+    (["--reps", "100000000"], "--reps must be in 1-100,000, got 100000000"),  # a bootstrap of hours
+    (["--reps", "0"], "--reps must be in 1-100,000, got 0"),
+])
+def test_report_refuses_options_that_would_run_for_hours(tmp_path, capsys, argv, message):
     two_auxss_runs(tmp_path / "runs")
     with pytest.raises(SystemExit) as exit_:
-        report.main([str(tmp_path / "runs"), "--seeds", "0-99999999"])
-    assert exit_.value.code == 2 and "expected at most 1,000 seeds" in capsys.readouterr().err
+        report.main([str(tmp_path / "runs"), *argv])
+    assert exit_.value.code == 2 and message in capsys.readouterr().err
+    assert not (tmp_path / "runs" / "report").exists()
