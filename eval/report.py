@@ -386,7 +386,9 @@ def build_report(roots: Path | Sequence[Path], out: Path, threshold: float = THR
         for warning in warnings:
             print(f"lava-bridge-bench report: warning: {warning}", file=sys.stderr)
         _publish(staging, out)
-    except BaseException:
+    except BaseException as error:
+        if isinstance(error, OSError) and error.filename and Path(error.filename).parent == staging:
+            error.filename = str(out / Path(error.filename).name)  # the file the user asked for
         shutil.rmtree(staging, ignore_errors=True)
         for directory in made:  # innermost first; only those this call made, and only while empty
             try:
