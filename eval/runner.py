@@ -168,7 +168,10 @@ class RunConfig:
     def __post_init__(self) -> None:
         for name, section in AGENT_CONFIGS.items():
             if isinstance(getattr(self, name), dict):
-                setattr(self, name, section(**getattr(self, name)))
+                try:
+                    setattr(self, name, section(**getattr(self, name)))
+                except ValueError as error:  # name the section: "sac.lr must be ..."
+                    raise ValueError(f"{name}.{error}") from None
         if self.method not in METHOD_STRATEGIES:
             raise ValueError(f"unknown method {self.method!r}; expected one of {METHODS}")
         for name, minimum in (("steps", 1), ("eval_every", 1), ("demo_subset", 1)):
@@ -228,7 +231,7 @@ class RunConfig:
                              f"it accepts {accepted or 'none'}")
         try:
             return cls(**values)
-        except TypeError as error:  # e.g. a hyperparameter of the wrong type
+        except (TypeError, ValueError) as error:  # e.g. a hyperparameter of the wrong type or range
             raise ValueError(f"{source}: {error}") from None
 
 

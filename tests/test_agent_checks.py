@@ -77,9 +77,9 @@ def test_bad_fields_raise_one_line_naming_the_field_and_the_value(config, field,
 
 def test_a_run_config_with_an_infinite_learning_rate_is_refused_before_any_work():
     """JSON's Infinity used to pass and the run died later with 'action must be finite'."""
-    with pytest.raises(ValueError, match=r"^lr must be a finite number > 0, got inf$"):
+    with pytest.raises(ValueError, match=r"^config: sac.lr must be a finite number > 0, got inf$"):
         RunConfig.from_dict(json.loads('{"method": "sac", "sac": {"lr": Infinity}}'))
-    with pytest.raises(ValueError, match=r"^target_entropy must be a finite number, got 'abc'$"):
+    with pytest.raises(ValueError, match=r"^config: sac.target_entropy must be a finite number, got 'abc'$"):
         RunConfig.from_dict({"method": "sac", "sac": {"target_entropy": "abc"}})
 
 

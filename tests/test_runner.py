@@ -327,8 +327,9 @@ def test_a_batch_refuses_seeds_whose_checkpoints_share_no_step(tmp_path):
     early = checkpoints_of_a_run_stopped_at(config, [0], 200, tmp_path / "early")[0]
     late = checkpoints_of_a_run_stopped_at(config, [1], 400, tmp_path / "late")[0]
     dirs = [tmp_path / f"mixed/seed{s}" for s in (0, 1)]
-    for d, states in zip(dirs, (early, late)):
+    for seed, d, states in zip((0, 1), dirs, (early, late)):
         d.mkdir(parents=True)
+        (d / "config.json").write_text(json.dumps(dataclasses.replace(config, seed=seed).to_dict()))
         torch.save(states[0], d / "checkpoint.pt")
     with pytest.raises(ValueError, match="different steps"):
         train(config, dirs, seeds=[0, 1], resume=True, progress=False)
