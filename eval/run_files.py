@@ -1,4 +1,4 @@
-"""The files of a run directory: which names make one, and verified torch files.
+"""The files of a run directory: which names make one, its writer's lock, and verified torch files.
 
 Checkpoints and policy snapshots are torch's zip archives, whose every record carries a CRC-32 that
 torch itself never checks on load: a flipped bit would silently change a resumed run or a video.
@@ -11,7 +11,9 @@ writer, and the file is replaced atomically.
 from __future__ import annotations
 
 import io
+import os
 import zipfile
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +27,12 @@ RUN_FILES = ("config.json", "provenance.json", "metrics.csv", "start_weights.npz
              "final.pt", "rollouts.mp4")
 """What a run directory holds besides policies/: what --overwrite removes."""
 POLICIES = "policies"
+LOCK = ".lock"
+"""Locked (flock) by the process writing the run; it holds that process's pid."""
+
+
+class RunDirectoryError(ValueError):
+    """The run directory cannot be used: another run's results, or another process writing it."""
 
 
 class DamagedFileError(ValueError):
@@ -66,3 +74,44 @@ def load_torch(path: str | Path, *, weights_only: bool = False) -> Any:
         return torch.load(io.BytesIO(payload), weights_only=weights_only)
     except Exception as error:  # noqa: BLE001 - a damaged archive can fail inside torch in many ways
         raise DamagedFileError(f"{path} cannot be read ({type(error).__name__}: {error})") from None
+
+
+@contextmanager
+def locked(directory: Path):
+    """Hold an exclusive lock on directory/.lock: two processes never write one run directory."""
+    import fcntl  # POSIX only: imported where a lock is taken, so reading runs works anywhere
+
+    with open(Path(directory) / LOCK, "a+") as lock:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            lock.seek(0)
+            raise RunDirectoryError(f"{directory} is being written by another process "
+                                    f"(pid {lock.read().strip() or '?'}); not starting a second writer") from None
+        lock.truncate(0)
+        lock.write(str(os.getpid()))
+        lock.flush()
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+
+
+def lock_holder(directory: Path) -> str | None:
+    """The pid (as `locked` recorded it, or '?') of the process holding `directory`'s lock; None when
+    no process holds it. Only tests the lock (a shared one, released at once); creates nothing."""
+    import fcntl
+
+    try:
+        lock = open(Path(directory) / LOCK)
+    except OSError:  # no lock file (nothing ever trained there) or unreadable: the trainer decides
+        return None
+    with lock:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return lock.read().strip() or "?"
+        except OSError:
+            return None
+        fcntl.flock(lock, fcntl.LOCK_UN)
+    return None

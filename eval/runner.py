@@ -59,8 +59,8 @@ from lava_bridge_mj.agents.start_strategies import STRATEGY_PARAMS, make_start_s
 from lava_bridge_mj.eval.atomic import atomic_write, atomic_write_text
 from lava_bridge_mj.eval.evaluate import evaluate
 from lava_bridge_mj.eval.provenance import code_provenance
-from lava_bridge_mj.eval.run_files import (CHECKPOINTS, POLICIES, RUN_FILES, DamagedFileError, load_torch, run_files,
-                                           save_torch)
+from lava_bridge_mj.eval.run_files import (CHECKPOINTS, POLICIES, RUN_FILES, DamagedFileError, RunDirectoryError,
+                                           load_torch, locked, run_files, save_torch)
 from lava_bridge_mj.vector import LavaBridgeVectorEnv
 
 METHOD_STRATEGIES = {
@@ -117,10 +117,6 @@ def _finite_policy(policy):
             raise PolicyDiverged(f"its evaluation policy's actions are not finite ({actions.reshape(-1, 2)[0]})")
         return actions
     return act
-
-
-class RunDirectoryError(ValueError):
-    """The run directory cannot be used: another run's results, or another process writing it."""
 
 
 @dataclasses.dataclass
@@ -758,7 +754,7 @@ def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seed
             raise RunDirectoryError(f"cannot create run directory {directory}: {error.strerror or error}") from None
     with ExitStack() as locks:
         for directory in dirs:
-            locks.enter_context(_locked(directory))
+            locks.enter_context(locked(directory))
         for seed_config, directory in zip(configs, dirs):  # check every directory before changing any
             _check_run_directory(seed_config, directory, resume, overwrite)
         if overwrite:
@@ -817,24 +813,3 @@ def _read_provenance(directory: Path) -> list[dict[str, Any]]:
         raise RunDirectoryError(f"{path} is not a JSON list of training sessions; not resuming into it "
                                 "(move it aside to continue without the earlier sessions' record)")
     return sessions
-
-
-@contextmanager
-def _locked(out_dir: Path):
-    """Hold an exclusive lock on out_dir/.lock: two processes never write one run directory."""
-    import fcntl
-
-    with open(out_dir / ".lock", "a+") as lock:
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            lock.seek(0)
-            raise RunDirectoryError(f"{out_dir} is being written by another process "
-                                    f"(pid {lock.read().strip() or '?'}); not starting a second writer") from None
-        lock.truncate(0)
-        lock.write(str(os.getpid()))
-        lock.flush()
-        try:
-            yield
-        finally:
-            fcntl.flock(lock, fcntl.LOCK_UN)

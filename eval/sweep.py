@@ -55,6 +55,7 @@ from pathlib import Path
 
 import lava_bridge_mj
 from lava_bridge_mj.eval.atomic import atomic_write_text
+from lava_bridge_mj.eval.run_files import lock_holder
 from lava_bridge_mj.eval.cli import _check_writable, _positive_int, format_seeds, parse_seeds, read_config_file
 from lava_bridge_mj.eval.runner import METHODS, RunConfig, RunInterrupted, train
 
@@ -153,31 +154,11 @@ def _foreign_error(config: RunConfig, directory: Path) -> str:
             "overwriting it: move it away or sweep into another --out")
 
 
-def _writer(directory: Path) -> str | None:
-    """The pid (as the runner recorded it, or '?') of the process holding `directory`'s run lock; None
-    when no process holds it. Only tests the lock (a shared one, released at once); creates nothing."""
-    import fcntl
-
-    try:
-        lock = open(directory / ".lock")
-    except OSError:  # no lock file (nothing ever trained there) or unreadable: the trainer decides
-        return None
-    with lock:
-        try:
-            fcntl.flock(lock, fcntl.LOCK_SH | fcntl.LOCK_NB)
-        except BlockingIOError:
-            return lock.read().strip() or "?"
-        except OSError:
-            return None
-        fcntl.flock(lock, fcntl.LOCK_UN)
-    return None
-
-
 def wait_for_writers(directories: Sequence[Path], timeout: float, poll: float = 0.2) -> dict[Path, str]:
     """Wait until no other process holds a lock on any of `directories` (a job of a killed sweep still
     writing its last checkpoint), at most `timeout` seconds, saying so once; returns the directories
     still locked then (their pids), {} when none is."""
-    busy = {d: pid for d in directories if (pid := _writer(d)) is not None}
+    busy = {d: pid for d in directories if (pid := lock_holder(d)) is not None}
     if not busy:
         return {}
     pids = ", ".join(sorted(set(busy.values())))
@@ -186,7 +167,7 @@ def wait_for_writers(directories: Sequence[Path], timeout: float, poll: float = 
     deadline = time.monotonic() + timeout
     while busy and time.monotonic() < deadline:
         time.sleep(poll)
-        busy = {d: pid for d in busy if (pid := _writer(d)) is not None}
+        busy = {d: pid for d in busy if (pid := lock_holder(d)) is not None}
     return busy
 
 
