@@ -31,6 +31,15 @@ def atomic_write(path: str | Path, write: Callable[[IO[bytes]], None]) -> None:
     fsync_directory(path.parent)
 
 
+def nearest_existing(path: str | Path) -> Path:
+    """`path` or its nearest existing ancestor: where missing directories on the way would be made,
+    so whether that one is a writable directory decides whether `path` can be written."""
+    existing = Path(path)
+    while not existing.exists():
+        existing = existing.parent
+    return existing
+
+
 def atomic_write_text(path: str | Path, text: str) -> None:
     atomic_write(path, lambda f: f.write(text.encode()))
 

@@ -26,6 +26,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import lava_bridge_mj  # noqa: E402
 from lava_bridge_mj.eval.runner import MAX_SEED, METHODS, RunConfig, check_batch_fits  # noqa: E402
+from lava_bridge_mj.eval.atomic import nearest_existing  # noqa: E402
 from lava_bridge_mj.eval.run_files import run_files  # noqa: E402
 
 DEFAULTS = RunConfig()
@@ -179,9 +180,7 @@ def _directory(text: str) -> Path:
 def _check_writable(out: Path, parser: argparse.ArgumentParser) -> None:
     if out.exists() and not out.is_dir():
         parser.error(f"--out {out} exists and is not a directory")
-    existing = out
-    while not existing.exists():  # the nearest existing ancestor is where the directory will be made
-        existing = existing.parent
+    existing = nearest_existing(out)
     if not existing.is_dir() or not os.access(existing, os.W_OK | os.X_OK):
         parser.error(f"--out {out} cannot be written: {existing} is not a writable directory")
 

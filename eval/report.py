@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lava_bridge_mj.eval.atomic import nearest_existing
 from lava_bridge_mj.eval.aggregate import (BOOTSTRAP_REPS, BOOTSTRAP_SEED, METRICS, THRESHOLD, Curve, Group,
                                            RunRecord, find_runs, group_runs, iqm_curves, late_means,
                                            steps_to_threshold)
@@ -515,9 +516,7 @@ def _unwritable(out: Path) -> str | None:
     """Why files cannot be written into directory `out` (to be made where missing), or None."""
     if out.exists() and not out.is_dir():
         return "exists and is not a directory"
-    existing = out
-    while not existing.exists():  # the nearest existing ancestor is where the directory will be made
-        existing = existing.parent
+    existing = nearest_existing(out)
     if not existing.is_dir():
         return f"cannot be made: {existing} is not a directory"
     if not os.access(existing, os.W_OK | os.X_OK):

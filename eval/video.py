@@ -37,6 +37,8 @@ import imageio.v2 as imageio
 import mujoco
 import numpy as np
 
+from lava_bridge_mj.eval.atomic import nearest_existing
+
 VIDEO_SUFFIXES = (".mp4",)
 STILL_SUFFIXES = (".png", ".jpg", ".jpeg")
 MAX_EPISODES = 100
@@ -163,9 +165,7 @@ def output_problem(path: Path, option: str, suffixes: tuple[str, ...]) -> str | 
         return f"{option} {path}: expected a file name ending in {names}"
     if path.is_dir():
         return f"{option} {path} is a directory"
-    existing = path.parent
-    while not existing.exists():  # the nearest existing ancestor is where directories will be made
-        existing = existing.parent
+    existing = nearest_existing(path.parent)
     if not existing.is_dir():
         return f"{option} {path}: {existing} is a file, not a directory"
     if not os.access(existing, os.W_OK | os.X_OK):
