@@ -558,7 +558,8 @@ class Run:
                 diverged = self.active & ~np.isfinite(actions).all(axis=1)
                 if diverged.any():
                     self._stop_diverged(diverged, f"its policy's action {actions[diverged.argmax()]} is not finite")
-                actions[~self.active] = 0.0  # a stopped seed's sub-env idles; its transitions are dropped
+                if not self.active.all():
+                    actions[~self.active] = 0.0  # a stopped seed's sub-env idles; its transitions are dropped
                 next_obs, rewards, terminated, truncated, info = self.envs.step(actions)
                 ended = np.array([active and s.observe(self.step + 1, a, r, o, term, trunc, success)
                                   for s, active, a, r, o, term, trunc, success in zip(
