@@ -16,6 +16,8 @@ from lava_bridge_mj.task_physics import LavaBridgeTask, as_vector
 MAX_EPISODE_STEPS = 500
 """The paper's horizon; `gymnasium.make` adds the TimeLimit."""
 RESET_OPTION_KEYS = ("state", "qpos", "qvel", "start")
+WRAPPER_RESET_OPTION_KEYS = ("minari_autoseed",)
+"""Reset options that wrappers read and pass on (minari.DataCollector's seeding switch): accepted, ignored."""
 RENDER_MODES = ("rgb_array",)
 
 
@@ -49,7 +51,8 @@ class LavaBridgeEnv(gymnasium.Env):
     `options={"start": "p0"}` (the default): a point in one of three small blobs at the left end of
     the start room, at rest. `options={"start": "ood"}`: spots elsewhere in the start room, some beside
     the lava edge, so the bridge must be approached along the pit. `options={"state": s}` or
-    `options={"qpos": ..., "qvel": ...}` starts from any valid physics state.
+    `options={"qpos": ..., "qvel": ...}` starts from any valid physics state. Any other option is
+    refused, except `minari_autoseed`, which `minari.DataCollector` reads and passes on; it is ignored.
 
     ## Episode End
     Terminates when the ball's centre comes within `goal_radius` of the goal (success,
@@ -175,7 +178,7 @@ class LavaBridgeEnv(gymnasium.Env):
         """A start distribution's name, or a checked (qpos, qvel); ValueError for bad options."""
         if not isinstance(options, dict):
             raise ValueError(f"reset options must be a dict, got {type(options).__name__}")
-        unknown = set(options) - set(RESET_OPTION_KEYS)
+        unknown = set(options) - set(RESET_OPTION_KEYS) - set(WRAPPER_RESET_OPTION_KEYS)
         if unknown:
             raise ValueError(f"unknown reset options {sorted(unknown)}; expected some of {RESET_OPTION_KEYS}")
         given = [k for k in ("state", "qpos", "start") if k in options]

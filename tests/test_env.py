@@ -411,6 +411,16 @@ BAD_RESET_OPTIONS = [
 ]
 
 
+def test_minari_reset_option_is_accepted_and_ignored(env):
+    """minari.DataCollector passes its `minari_autoseed` switch on to the env's reset."""
+    plain, _ = env.reset(seed=5)
+    for options in ({"minari_autoseed": False}, {"minari_autoseed": True, "start": "p0"}):
+        obs, _ = env.reset(seed=5, options=options)
+        np.testing.assert_array_equal(obs, plain)
+    with pytest.raises(ValueError, match=r"unknown reset options \['minari_autoseedd'\]"):
+        env.reset(options={"minari_autoseedd": False})
+
+
 @pytest.mark.parametrize("options, message", BAD_RESET_OPTIONS)
 def test_bad_reset_raises_and_leaves_the_state_untouched(env, options, message):
     env.reset(options={"state": [-2.5, 0.7, 1.5, -0.5]})
