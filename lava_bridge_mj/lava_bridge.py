@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import atexit
 import dataclasses
+import weakref
 from typing import Any, NamedTuple
 
 import gymnasium
@@ -216,6 +218,7 @@ class LavaBridgeEnv(gymnasium.Env):
         if self.render_quality == "fast":
             self.model.vis.quality.offsamples = 0  # no multisample anti-aliasing: ~25x faster on Mesa
         renderer = mujoco.Renderer(self.model, height=self.height, width=self.width)
+        close_renderers_at_exit(self)
         if self.render_quality == "fast":
             for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION,
                          mujoco.mjtRndFlag.mjRND_SKYBOX):
@@ -226,6 +229,26 @@ class LavaBridgeEnv(gymnasium.Env):
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+
+
+_ENVS_WITH_RENDERERS: weakref.WeakSet[LavaBridgeEnv] = weakref.WeakSet()
+
+
+def close_renderers_at_exit(env: LavaBridgeEnv) -> None:
+    """Have `env`'s renderer closed at interpreter exit, while its GL display is still open.
+
+    The first renderer of a process registers EGL's display shutdown with atexit; a renderer still
+    open after it fails in its destructor and prints EGL tracebacks. Exit hooks run last-registered
+    first, so the hook is moved to the end at every new renderer and runs before that shutdown.
+    """
+    _ENVS_WITH_RENDERERS.add(env)
+    atexit.unregister(_close_renderers)
+    atexit.register(_close_renderers)
+
+
+def _close_renderers() -> None:
+    for env in list(_ENVS_WITH_RENDERERS):
+        env.close()
 
 
 class EnvArguments(NamedTuple):

@@ -691,6 +691,33 @@ def test_render_frames_do_not_alias_each_other():
         env.close()
 
 
+@needs_gl
+def test_renderers_left_open_close_quietly_at_exit():
+    """A script that renders and exits without env.close() prints nothing on stderr (no EGL tracebacks
+    from the renderers' destructors), with the GL backend the tests use."""
+    code = ("import gymnasium, lava_bridge_mj\n"
+            "wrapped = gymnasium.make('LavaBridge-v0', render_mode='rgb_array', width=64, height=48)\n"
+            "bare = lava_bridge_mj.LavaBridgeEnv(render_mode='rgb_array', width=32, height=24)\n"
+            "for env in (wrapped, bare):\n"
+            "    env.reset(seed=0)\n"
+            "    print(env.render().shape)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0
+    assert out.stdout.split("\n")[:2] == ["(48, 64, 3)", "(24, 32, 3)"]
+    assert out.stderr == ""
+
+
+@needs_gl
+def test_an_env_rendering_again_after_close_still_works():
+    env = LavaBridgeEnv(render_mode="rgb_array", width=32, height=24)
+    env.reset(seed=0)
+    first = env.render()
+    env.close()
+    env.close()  # closing twice is harmless
+    assert np.array_equal(env.render(), first)  # a new renderer, made on demand
+    env.close()
+
+
 # --- suite-style invariants ------------------------------------------------------------------------------
 @pytest.mark.parametrize("wrapped", [False, True])
 def test_observations_never_share_memory_with_physics(wrapped):
