@@ -6,24 +6,40 @@ there and marked truncated. LavaBridge-v0's are `assets/demos_500.npz` and `asse
 (its 500 set is 3 trajectories, as in the paper), another task's `assets/demos_<env id>_<size>.npz`.
 `assets/demos.json` records, per task and size, the file, seed, episode count and a SHA-256 of the
 arrays; `python -m lava_bridge_mj demos --check` regenerates every set and compares them bit for bit.
+
+`load_demos(..., format="d4rl")` gives a set under D4RL's names (terminals, timeouts), and
+`to_minari(size, env_id)` (`python -m lava_bridge_mj demos --minari`) writes it as a local Minari
+dataset, one Minari episode per expert episode (needs the `minari` extra).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
+import shutil
+import warnings
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+import gymnasium
 import numpy as np
 
 from lava_bridge_mj.expert import ScriptedExpert
 from lava_bridge_mj.lava_bridge import MAX_EPISODE_STEPS, LavaBridgeEnv
 from lava_bridge_mj.tasks import DEFAULT_ENV_ID, TASKS, task_layout
 
+if TYPE_CHECKING:
+    import minari
+
 SHIPPED_SIZES = (500, 7500)
 SHIPPED_SEEDS = {500: 0, 7500: 1}
 MANIFEST = "demos.json"
+FORMATS = ("gymnasium", "d4rl")
+D4RL_NAMES = {"terminations": "terminals", "truncations": "timeouts"}
+"""load_demos(format="d4rl") renames these fields, drops episode_ids and keeps the rest as they are."""
+MINARI_NAMESPACE = "lava_bridge"
 
 
 def demo_file(env_id: str, size: int) -> str:
@@ -100,13 +116,20 @@ def check_demos(demos: dict[str, np.ndarray], source: str) -> None:
             raise ValueError(f"demo file {source}: field {name!r} has non-finite values")
 
 
-def load_demos(size: int = 500, path: str | Path | None = None, env_id: str = DEFAULT_ENV_ID) -> dict[str, np.ndarray]:
+def load_demos(size: int = 500, path: str | Path | None = None, env_id: str = DEFAULT_ENV_ID,
+               format: str = "gymnasium") -> dict[str, np.ndarray]:
     """A task's shipped demo set by size (500 or 7500), or a file written by `save_demos` at `path`.
 
     `env_id` names the task (`lava_bridge_mj.TASKS`; LavaBridge-v0 by default); it is ignored with
-    `path`. Returns a dict of arrays: observations, actions, rewards, next_observations,
-    terminations, truncations, episode_ids. Shipped sets are checked against their recorded SHA-256.
+    `path`. Returns a dict of arrays, one row per transition: observations, actions, rewards,
+    next_observations, terminations, truncations, episode_ids (Gymnasium's names). With
+    `format="d4rl"`, D4RL's: observations, actions, rewards, next_observations, terminals, timeouts,
+    as D4RL loaders (d3rlpy, CORL) read them; `timeouts` marks every episode end that is not a
+    termination, the last episode's cut at the set size included. Shipped sets are checked against
+    their recorded SHA-256.
     """
+    if format not in FORMATS:
+        raise ValueError(f"format={format!r}; expected one of {FORMATS}")
     if path is None:
         task_layout(env_id)  # ValueError naming an unknown task
         if size not in SHIPPED_SIZES:
@@ -136,6 +159,8 @@ def load_demos(size: int = 500, path: str | Path | None = None, env_id: str = DE
     if expected is not None and content_hash(demos) != expected:
         raise ValueError(f"demo file {source} is corrupt: its content hash differs from the one "
                          f"recorded in {MANIFEST}; reinstall the package or regenerate it")
+    if format == "d4rl":
+        return {D4RL_NAMES.get(name, name): array for name, array in demos.items() if name != "episode_ids"}
     return demos
 
 
@@ -169,3 +194,99 @@ def regenerate_demos(check: bool = False) -> bool:
     if not check:
         (assets / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
     return identical
+
+
+# --- Minari ----------------------------------------------------------------------------------------
+def minari_dataset_id(size: int, env_id: str = DEFAULT_ENV_ID) -> str:
+    """The Minari id `to_minari` writes a task's shipped set under, e.g. lava_bridge/LavaBridge-v0/expert-500-v0."""
+    return f"{MINARI_NAMESPACE}/{env_id}/expert-{size}-v0"
+
+
+def minari_dataset_path(size: int, env_id: str = DEFAULT_ENV_ID) -> Path:
+    """Where `to_minari` writes the dataset: under Minari's root, MINARI_DATASETS_PATH or ~/.minari/datasets."""
+    import_minari()
+    from minari.storage import get_dataset_path
+
+    return Path(get_dataset_path(minari_dataset_id(size, env_id)))
+
+
+def task_env(env_id: str, **kwargs) -> LavaBridgeEnv:
+    """The suite's task `env_id` as a LavaBridgeEnv: the entry point recorded in a Minari dataset of a
+    task other than LavaBridge-v0, whose registered keyword arguments (a Layout) are not JSON."""
+    return LavaBridgeEnv(layout=task_layout(env_id), **kwargs)
+
+
+def minari_env_spec(env_id: str) -> gymnasium.envs.registration.EnvSpec:
+    """The task's registered EnvSpec, with JSON-serialisable keyword arguments, so that
+    `MinariDataset.recover_environment()` can make the env again."""
+    spec = gymnasium.spec(env_id)
+    if not spec.kwargs:
+        return spec
+    return dataclasses.replace(spec, entry_point=f"{__name__}:task_env", kwargs={"env_id": env_id})
+
+
+def import_minari():
+    """The minari module; ImportError saying how to install it when it or h5py (its HDF5 storage) is missing."""
+    try:
+        import h5py  # noqa: F401
+        import minari
+    except ImportError:
+        raise ImportError("Minari export needs the minari package with HDF5 support: "
+                          "pip install 'lava-bridge-mj[minari]'") from None
+    return minari
+
+
+def to_minari(size: int, env_id: str = DEFAULT_ENV_ID) -> minari.MinariDataset:
+    """Write a task's shipped `size` set as the local Minari dataset `minari_dataset_id(size, env_id)`.
+
+    One Minari episode per expert episode (split by `episode_ids`), its observations the episode's
+    observations followed by its last next_observation. The set's last episode is cut at the set
+    size and recorded as truncated, as the dataset's description says. The dataset goes under
+    Minari's root (MINARI_DATASETS_PATH, else ~/.minari/datasets); ValueError, writing nothing, when a
+    dataset with that id exists there. Returns the dataset, as `minari.load_dataset(id)` would.
+    """
+    minari = import_minari()
+    from minari.data_collector import EpisodeBuffer
+
+    demos = load_demos(size, env_id=env_id)  # ValueError for an unknown task or size
+    dataset_id = minari_dataset_id(size, env_id)
+    path = minari_dataset_path(size, env_id)
+    if path.exists():
+        raise ValueError(f"Minari dataset {dataset_id} already exists at {path}; delete it "
+                         f"(minari.delete_dataset({dataset_id!r})) to write it again")
+    ids = demos["episode_ids"]
+    episodes = []
+    for episode in range(int(ids[-1]) + 1):
+        rows = ids == episode
+        episodes.append(EpisodeBuffer(
+            id=episode,
+            seed=SHIPPED_SEEDS[size] if episode == 0 else None,  # later episodes go on with its RNG
+            observations=np.concatenate([demos["observations"][rows], demos["next_observations"][rows][-1:]]),
+            actions=demos["actions"][rows],
+            rewards=demos["rewards"][rows],
+            terminations=demos["terminations"][rows],
+            truncations=demos["truncations"][rows]))
+    spec = minari_env_spec(env_id)
+    try:
+        with warnings.catch_warnings():  # Minari asks for a code URL and an e-mail; a local export has neither
+            warnings.filterwarnings("ignore", message="`(code_permalink|author_email)` is set to None")
+            return minari.create_dataset_from_buffers(
+                dataset_id, episodes, env=spec, eval_env=spec, data_format="hdf5", algorithm_name="ScriptedExpert",
+                author="lava-bridge-mj", description=minari_description(demos, size, env_id),
+                requirements=["lava-bridge-mj"])
+    except BaseException:
+        shutil.rmtree(path, ignore_errors=True)  # no half-written dataset blocks the next try
+        raise
+
+
+def minari_description(demos: dict[str, np.ndarray], size: int, env_id: str) -> str:
+    """What the Minari dataset holds, with how its last episode ends."""
+    lengths = np.bincount(demos["episode_ids"])
+    text = (f"Scripted-expert demonstrations on {env_id}: the {size}-transition set shipped with "
+            f"lava-bridge-mj (lava_bridge_mj.load_demos({size}, env_id={env_id!r})), {len(lengths)} episodes "
+            f"from p0 generated with seed {SHIPPED_SEEDS[size]}. Reward +1 at the goal, where an episode "
+            "terminates; 0 otherwise.")
+    if demos["truncations"][-1] and lengths[-1] < MAX_EPISODE_STEPS:
+        text += (f" The last episode ({len(lengths) - 1}, {lengths[-1]} steps) is cut where the set reaches "
+                 f"{size} transitions, not by the {MAX_EPISODE_STEPS}-step time limit, and is recorded as truncated.")
+    return text
