@@ -11,7 +11,7 @@ import pytest
 import lava_bridge_mj  # noqa: F401  (registers the tasks)
 from lava_bridge_mj import load_demos
 from lava_bridge_mj.__main__ import main
-from lava_bridge_mj.demos import minari_dataset_id, to_minari
+from lava_bridge_mj.demos import minari_dataset_id, minari_dataset_path, to_minari
 
 D4RL_KEYS = {"observations", "actions", "rewards", "next_observations", "terminals", "timeouts"}
 
@@ -95,6 +95,21 @@ def test_to_minari_refuses_an_existing_dataset_and_leaves_it_as_it_was(minari_ro
     with pytest.raises(ValueError, match="lava_bridge/LavaBridge-v0/expert-500-v0 already exists at"):
         to_minari(500)
     assert files_under(tmp_path / "datasets") == before
+
+
+def test_to_minari_failing_midway_leaves_no_half_dataset(minari_root, monkeypatch):
+    real = minari_root.create_dataset_from_buffers
+
+    def fail_after_making_the_directory(dataset_id, *args, **kwargs):
+        minari_dataset_path(500).joinpath("data").mkdir(parents=True)
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(minari_root, "create_dataset_from_buffers", fail_after_making_the_directory)
+    with pytest.raises(OSError, match="No space left"):
+        to_minari(500)
+    assert not minari_dataset_path(500).exists()
+    monkeypatch.setattr(minari_root, "create_dataset_from_buffers", real)
+    assert to_minari(500).total_episodes == 3  # the next try is not blocked
 
 
 def test_cli_writes_minari_datasets(minari_root, tmp_path, capsys):
