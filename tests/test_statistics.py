@@ -1,4 +1,5 @@
-"""eval/statistics.py against hand-computed and published values and scipy."""
+"""eval/statistics.py against hand-computed and published values and scipy, and the report's tables
+built from it on a tiny synthetic results tree."""
 
 import itertools
 import math
@@ -9,6 +10,9 @@ import scipy.stats
 
 pytest.importorskip("rliable", reason="the report needs the plots extra: pip install -e '.[plots]'")
 
+from test_report import write_run  # noqa: E402
+
+from lava_bridge_mj.eval import report  # noqa: E402
 from lava_bridge_mj.eval import statistics as stats  # noqa: E402
 
 INF = math.inf
@@ -136,3 +140,40 @@ def test_power_grows_with_the_difference_and_seeds_needed_falls():
     with pytest.raises(ValueError, match="1.5"):
         stats.power(1.5, 0.5, 10)
 
+
+# --- the report's tables -------------------------------------------------------------------------
+def _tree(root):
+    """AuxSS: all 5 seeds reach 0.8 (at step 3,000 or 4,000); U-SS: 1 of 5 does, late; GoalDist-SS: 4 of 5
+    do, like AuxSS's best seeds."""
+    for seed in range(5):
+        write_run(root / "auxss" / f"seed{seed}", seed=seed, p0=[0.0, 0.4, 0.9 if seed < 3 else 0.6, 1.0])
+        write_run(root / "uss" / f"seed{seed}", method="uniform_ss", seed=seed,
+                  p0=[0.0, 0.1, 0.2, 0.9 if seed == 0 else 0.3])
+        write_run(root / "goaldist" / f"seed{seed}", method="goaldist_ss", seed=seed,
+                  p0=[0.0, 0.4, 0.9, 1.0] if seed else [0.0, 0.2, 0.5, 0.5])
+
+
+def test_report_writes_the_reach_counts_and_the_pairwise_tests(tmp_path):
+    _tree(tmp_path / "runs")
+    assert report.main([str(tmp_path / "runs"), "--reps", "50", "--out", str(tmp_path / "out")]) == 0
+    text = (tmp_path / "out" / "report.md").read_text()
+    # the area under AuxSS's curves: 1.8 / 3 for seeds 0-2 (trapezoids 0.2 + 0.65 + 0.95), 1.5 / 3 for 3-4
+    assert "| auxss (0.5K) | 4,000 | 5 of 5 [0.48, 1.00] | 0.56 |" in text
+    assert "| uniform_ss (0.5K) | 4,000 | 1 of 5 [0.01, 0.72] |" in text
+    assert "| goaldist_ss (0.5K) | 4,000 | 4 of 5 [0.28, 0.99] |" in text
+    cells = [[cell.strip() for cell in line.strip("|").split("|")] for line in text.splitlines()]
+    rows = {tuple(row[:2]): row for row in cells if len(row) == 12 and row[0] not in ("A", "---")}
+    assert list(rows) == [("auxss (0.5K)", "uniform_ss (0.5K)"), ("auxss (0.5K)", "goaldist_ss (0.5K)"),
+                          ("uniform_ss (0.5K)", "goaldist_ss (0.5K)")]
+    # 5 of 5 against 1 of 5: p = 10 / 210 by hand, times 3 pairs (Holm's smallest) = 0.143
+    auxss_uss = rows["auxss (0.5K)", "uniform_ss (0.5K)"]
+    assert auxss_uss[2:5] == ["4,000", "5/5, 1/5", f"{10 / 210:.3g} ({30 / 210:.3g})"]
+    # late window (steps 3,000 and 4,000): every AuxSS seed (0.95 or 0.8) above every U-SS one (0.55 or
+    # 0.25), so P(A > B) = 1 and only that split and its mirror are as extreme: p = 2 / C(10, 5) = 2 / 252,
+    # the smallest late p of the three pairs, so Holm multiplies it by 3
+    assert auxss_uss[7] == f"{2 / 252:.3g} ({6 / 252:.3g})" and auxss_uss[8] == "1.00"
+    # not more often after the correction (0.143), but higher late
+    assert auxss_uss[11].startswith("auxss (0.5K) ") and "is higher late in training" in auxss_uss[11]
+    assert "more often" not in auxss_uss[11]
+    assert rows["auxss (0.5K)", "goaldist_ss (0.5K)"][11] == "not enough seeds to decide"
+    assert "Holm-adjusted across the 3 pairs" in text
