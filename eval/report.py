@@ -12,8 +12,10 @@ PNG and PDF:
     start_distributions  AuxSS, Omega-SS, U-SS and GoalDist-SS: the start-distribution study
     maze               the maze (walls, lava, goal, p0 blobs, ood spots, the candidate demo states) and
                        an AuxSS run's start-state probabilities on those states at a few evaluations
-and report.md, which embeds the PNGs (relative links) with two tables: IQM and 95% CI at the last
-evaluation per group, and the steps to p0 success >= 0.8 with how many seeds got there. Lines are IQMs
+and report.md, which embeds the PNGs (relative links) with its tables: IQM and 95% CI at the last
+evaluation per group, the steps to p0 success >= 0.8 with how many seeds got there, the reach counts
+with exact intervals and the area under the success curve, and the pairwise tests of `comparison_pairs`
+(eval/statistics.py: exact and rank tests, Holm-corrected, with the power of each). Lines are IQMs
 across seeds, bands their 95% stratified-bootstrap CIs (rliable). A figure none of whose methods is in
 DIR is skipped with a line in report.md saying so. For the offline methods (bc, iql) a step is a
 gradient step, not an env step; their legend entries say so.
@@ -45,7 +47,8 @@ from lava_bridge_mj.eval.aggregate import (BOOTSTRAP_REPS, BOOTSTRAP_SEED, METRI
                                            RunRecord, find_runs, group_runs, iqm_curves, late_means,
                                            steps_to_threshold)
 from lava_bridge_mj.eval.cli import _positive_int, format_seeds
-from lava_bridge_mj.eval.findings import check_findings, common_step, demo_size_rows, variant_rows
+from lava_bridge_mj.eval import statistics as stats
+from lava_bridge_mj.eval.findings import check_findings, common_step, demo_size_rows, is_default, pick, variant_rows
 from lava_bridge_mj.eval.summary import read_start_weights
 from lava_bridge_mj.eval.sweep import seed_list
 
@@ -220,6 +223,33 @@ def demo_size_groups(groups: list[Group]) -> list[Group]:
     return [g for g in groups if g.method in both and g.demos in DEMO_SIZES]
 
 
+def comparison_pairs(groups: list[Group]) -> list[tuple[Group, Group]]:
+    """The pairs the report tests, each once: every pair of the start-distribution study's groups;
+    AuxSS (0.5K) against every other online method's 0.5K group; each method's 0.5K against its 7.5K
+    group; and each variant against its method's default configuration on the same demo set."""
+    pairs: list[tuple[Group, Group]] = []
+
+    def add(a: Group | None, b: Group | None) -> None:
+        if a is not None and b is not None and a is not b and (a, b) not in pairs and (b, a) not in pairs:
+            pairs.append((a, b))
+
+    defaults = [g for g in groups if is_default(g)]
+    study = [g for g in defaults if g.method in START_STUDY and g.demos == STANDARD_DEMOS]
+    for i, a in enumerate(study):
+        for b in study[i + 1:]:
+            add(a, b)
+    for b in defaults:
+        if b.demos == STANDARD_DEMOS and b.method not in OFFLINE:
+            add(pick(groups, "auxss"), b)
+    for g in defaults:
+        if g.demos == DEMO_SIZES[0]:
+            add(g, pick(groups, g.method, DEMO_SIZES[1]))
+    for g in groups:
+        if not is_default(g):
+            add(pick(groups, g.method, g.demos), g)
+    return pairs
+
+
 def weights_run(groups: list[Group], threshold: float, usable=None) -> RunRecord | None:
     """The AuxSS run whose start weights the maze figure shows: of the first AuxSS group (0.5K first)
     with start_weights.npz, the lowest seed that reached the threshold, else its lowest seed. `usable`
@@ -351,6 +381,73 @@ def _threshold_table(groups: list[Group], threshold: float) -> list[str]:
     return lines
 
 
+def _ci(reach: stats.ReachCount) -> str:
+    return f"{reach.reached} of {reach.seeds} [{reach.low:.2f}, {reach.high:.2f}]"
+
+
+def _p(raw: float, adjusted: float) -> str:
+    return f"{raw:.3g} ({adjusted:.3g})" if math.isfinite(raw) else "-"
+
+
+def _reach_table(groups: list[Group], threshold: float) -> list[str]:
+    lines = [f"Per group, the seeds whose success from p0 reached {threshold:g} at some evaluation, with the exact "
+             f"(Clopper-Pearson) {stats.CONFIDENCE:.0%} interval of the reach rate, and the area under each seed's "
+             f"success-from-p0 curve divided by the steps it spans (1 = success 1.0 at every evaluation), averaged "
+             f"over seeds.", "",
+             "| group | up to step | reached [95% CI of the rate] | area under the success curve |",
+             "|---|---:|---:|---:|"]
+    for g in groups:
+        outcomes = stats.seed_outcomes(g, threshold)
+        if outcomes is None:
+            lines.append(f"| {g.label} | - | - | - |")
+            continue
+        lines.append(f"| {g.label} | {outcomes.step:,.0f} | {_ci(outcomes.reach)} | {outcomes.auc.mean():.2f} |")
+    return lines
+
+
+def _pairwise_section(groups: list[Group], threshold: float) -> list[str]:
+    """The pairwise table: every test of eval/statistics.py for each of `comparison_pairs`."""
+    compared, skipped = [], []
+    for a, b in comparison_pairs(groups):
+        until = min(a.steps[-1], b.steps[-1]) if len(a.steps) and len(b.steps) else None
+        outcomes = [stats.seed_outcomes(g, threshold, until) for g in (a, b)] if until is not None else [None]
+        if None in outcomes:
+            skipped.append(f"{a.label} against {b.label}")
+            continue
+        compared.append((a, b, stats.compare(*outcomes)))
+    lines = [f"Each pair up to the last step both groups have. Two-sided p-values, raw and (in brackets) "
+             f"Holm-adjusted across the {len(compared)} pairs of this table, one family per column: Fisher's exact "
+             f"test on the reach counts; Mann-Whitney U on the steps to {threshold:g}, a seed that never got there "
+             f"tied last; permutation tests of the difference in mean final and late-window success from p0 "
+             f"(the last third of the steps). Rank and permutation p-values use every split of the seeds when there "
+             f"are at most {stats.PERMUTATIONS:,}, else {stats.PERMUTATIONS:,} random ones (seed "
+             f"{stats.PERMUTATION_SEED}). P(A > B) is rliable's probability of improvement on late-window success. "
+             f"Power is that of Fisher's test at {stats.ALPHA:g} with these seeds if the observed reach rates were "
+             f"the true ones; seeds needed is the fewest seeds per group that give {stats.POWER:.0%} power there "
+             f"(exact, by enumerating the binomial outcomes; '> {stats.MAX_SEEDS}' beyond); both read '-' when the "
+             f"observed rates are equal. The verdict names each test that rejects at {stats.ALPHA:g} after the "
+             f"correction, and is *not enough seeds to decide* when none does: the groups are then not ranked. A "
+             f"group of one seed gets no rank or permutation test ('-')."]
+    if not compared:
+        return lines + ["", "*No pairs to compare here.*"]
+    needed = stats.seeds_needed(0.5, 0.8)
+    lines[0] += (f" For reference, a reach rate of 0.8 against 0.5 needs {needed} seeds per group "
+                 f"for {stats.POWER:.0%} power." if needed else "")
+    lines += ["", "| A | B | up to step | reached A, B | reach p | steps p | final p | late p | P(A > B) | power | "
+                  "seeds needed | verdict |", "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
+    for (a, b, c), adjusted in zip(compared, stats.holm_by_test([c for _, _, c in compared])):
+        equal = c.a.reach.rate == c.b.reach.rate  # no difference to detect
+        power = "-" if equal else f"{c.power:.2f}"
+        needed = "-" if equal else str(c.seeds_needed) if c.seeds_needed is not None else f"> {stats.MAX_SEEDS}"
+        cells = [a.label, b.label, f"{c.a.step:,.0f}", f"{c.a.reach.reached}/{c.a.reach.seeds}, "
+                 f"{c.b.reach.reached}/{c.b.reach.seeds}", *(_p(c.p[t], adjusted[t]) for t in stats.TESTS),
+                 f"{c.improvement:.2f}", power, needed, stats.decision(c, adjusted, a.label, b.label)]
+        lines.append("| " + " | ".join(cells) + " |")
+    if skipped:
+        lines += ["", f"*Not compared (no evaluation step in common): {'; '.join(skipped)}.*"]
+    return lines
+
+
 def _findings_section(groups: list[Group]) -> list[str]:
     step = common_step(groups)
     cut = f" Online methods are compared up to step {step:,.0f}, the last that all of them have." if step else ""
@@ -456,6 +553,8 @@ def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dic
     lines.extend(["", "## At the last evaluation", "", *_last_evaluation_table(groups, curves)])
     lines.extend(["", "## Over the last third of training", "", *_late_table(groups, reps)])
     lines.extend(["", f"## Steps to p0 success >= {threshold:g}", "", *_threshold_table(groups, threshold)])
+    lines.extend(["", f"## Seeds reaching p0 success >= {threshold:g}", "", *_reach_table(groups, threshold)])
+    lines.extend(["", "## Pairwise tests", "", *_pairwise_section(groups, threshold)])
     if threshold == THRESHOLD:  # the paper's claims are about 0.8
         lines.extend(["", "## The paper's findings", "", *_findings_section(groups)])
     atomic_write_text(out / "report.md", "\n".join(lines) + "\n")

@@ -1,0 +1,304 @@
+"""Statistics for nearly all-or-nothing outcomes: reach counts, exact and rank tests, power.
+
+Per seed, success from p0 tends to be 0 or about 1 for most of training: a seed solves the task or
+it does not. An IQM across 10-15 such seeds reads 1.0 whenever three or fewer fail, so the report
+also states, per group and per pair of groups:
+
+- **Reach count**: the seeds whose success from p0 reached the threshold at some evaluation up to the
+  step compared, with the exact (Clopper-Pearson) 95% interval of the reach rate.
+- **Fisher's exact test** (two-sided) on the two groups' reach counts. Fisher's rather than Barnard's:
+  conditioning on the total makes it slightly conservative, but its p-value for every table of a
+  given size comes from one hypergeometric distribution, which is what lets `power` enumerate all
+  outcomes exactly.
+- **Rank test on steps to threshold**: Mann-Whitney U (two-sided) with every seed that never got
+  there tied in last place, its p-value from the permutation distribution of U (exact when there are
+  at most `PERMUTATIONS` distinct splits of the seeds, else `PERMUTATIONS` random ones), so the many
+  ties are handled without a normal approximation.
+- **Permutation tests** on the final success from p0 and on each seed's mean over the late window
+  (eval/aggregate.py's last third): the difference of the group means, two-sided, with the same
+  number of permutations and a fixed seed (`PERMUTATION_SEED`): the same runs give the same p-values.
+- **Holm's correction** across the pairs a report tests, one family per test.
+- **Probability of improvement** (rliable's definition: P(X > Y) + P(X = Y) / 2 for a random seed of
+  each group) of the late-window success from p0, and the **area under the success curve** per seed,
+  normalised by the steps it spans (1 = success 1.0 at every evaluation).
+- **Power**: the probability that Fisher's test at level `ALPHA` rejects, for given reach rates and
+  seeds per group, computed exactly by summing the binomial probabilities of every outcome table that
+  the test rejects (no normal approximation); `seeds_needed` is the smallest number of seeds per group
+  that gives `POWER` (80%), up to `MAX_SEEDS`. An exact test's power is not monotone in the number of
+  seeds (it saws up and down with the discreteness of the p-values); `seeds_needed` is the first
+  number of seeds that reaches the target.
+
+Everything here takes arrays of per-seed values (numpy and scipy; rliable for the probability of
+improvement) except `seed_outcomes`, which reads them from a group of runs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from collections.abc import Sequence
+
+import numpy as np
+import scipy.stats
+
+from lava_bridge_mj.eval.aggregate import LATE_FRACTION
+
+ALPHA = 0.05
+"""Level of every test and of the power calculation."""
+POWER = 0.8
+"""The power `seeds_needed` asks for."""
+MAX_SEEDS = 100
+"""`seeds_needed` looks no further than this many seeds per group."""
+CONFIDENCE = 0.95
+PERMUTATIONS = 10_000
+"""Random permutations per permutation test (and per rank test) when there are more distinct splits of
+the seeds than this (15 against 15 seeds have 155 million): a p-value near 0.05 then has a standard
+error of 0.0022 (sqrt(0.05 x 0.95 / 10,000))."""
+PERMUTATION_SEED = 2024
+_RELATIVE_TOLERANCE = 1 + 1e-7
+"""Tables whose probability equals the observed one up to rounding count as at least as extreme."""
+
+
+# --- per group -----------------------------------------------------------------------------------
+@dataclasses.dataclass(frozen=True)
+class ReachCount:
+    """`reached` of `seeds` seeds got to the threshold; [low, high] is the exact interval of the rate."""
+
+    reached: int
+    seeds: int
+    low: float
+    high: float
+
+    @property
+    def rate(self) -> float:
+        return self.reached / self.seeds if self.seeds else math.nan
+
+
+def reach_count(reached: int, seeds: int, confidence: float = CONFIDENCE) -> ReachCount:
+    """The reach count with its Clopper-Pearson interval (scipy's exact binomial interval)."""
+    if not 0 <= reached <= seeds or seeds < 1:
+        raise ValueError(f"a reach count needs 0 <= reached <= seeds and seeds >= 1, got {reached} of {seeds}")
+    interval = scipy.stats.binomtest(reached, seeds).proportion_ci(confidence, method="exact")
+    return ReachCount(reached, seeds, float(interval.low), float(interval.high))
+
+
+def normalised_auc(steps: np.ndarray, success: np.ndarray) -> np.ndarray:
+    """Area under each row of `success` (seeds, steps) over `steps` by the trapezoid rule, divided by
+    the steps spanned: the mean success over training, 1 for success 1.0 throughout. With a single
+    evaluation, that evaluation's value."""
+    steps, success = np.asarray(steps, float), np.atleast_2d(np.asarray(success, float))
+    if len(steps) == 1:
+        return success[:, 0].copy()
+    return np.trapezoid(success, steps, axis=1) / (steps[-1] - steps[0])
+
+
+@dataclasses.dataclass(frozen=True)
+class SeedOutcomes:
+    """A group's per-seed outcomes up to `step`, the last evaluation step compared."""
+
+    step: float
+    first_reach: np.ndarray
+    """Per seed, the first evaluation step with success from p0 at or above the threshold; inf if none."""
+    final: np.ndarray
+    """Per seed, success from p0 at `step`."""
+    late: np.ndarray
+    """Per seed, the mean success from p0 over the evaluations past two thirds of `step`."""
+    auc: np.ndarray
+    """Per seed, `normalised_auc` of success from p0 over the evaluations up to `step`."""
+
+    @property
+    def reach(self) -> ReachCount:
+        return reach_count(int(np.isfinite(self.first_reach).sum()), len(self.first_reach))
+
+
+def seed_outcomes(group, threshold: float, until: float | None = None) -> SeedOutcomes | None:
+    """The outcomes of a group (eval/aggregate.py's `Group`) over its evaluations up to step `until`
+    (default: all of them), measured at the last step that all of its seeds have there; None when
+    its seeds share no step up to `until`."""
+    steps = group.steps
+    kept = steps <= until if until is not None else np.ones(len(steps), bool)
+    if not kept.any():
+        return None
+    steps, success = steps[kept], group.scores("success_p0")[:, kept]
+    step = steps[-1]
+    first = []
+    for run in group.runs:  # every evaluation of the run up to `step`, not only the common ones
+        hits = [row["step"] for row in run.rows if row["step"] <= step and row["success_p0"] >= threshold]
+        first.append(min(hits) if hits else math.inf)
+    window = steps > (1 - LATE_FRACTION) * step
+    return SeedOutcomes(float(step), np.array(first, float), success[:, -1], success[:, window].mean(axis=1),
+                        normalised_auc(steps, success))
+
+
+# --- tests between two groups --------------------------------------------------------------------
+def fisher_p(reached_a: int, seeds_a: int, reached_b: int, seeds_b: int) -> float:
+    """Two-sided p-value of Fisher's exact test on the 2x2 table of reached / not reached."""
+    table = [[reached_a, seeds_a - reached_a], [reached_b, seeds_b - reached_b]]
+    return float(scipy.stats.fisher_exact(table).pvalue)
+
+
+def _never_last(steps: np.ndarray, ceiling: float) -> np.ndarray:
+    """Steps with `inf` (never reached) replaced by `ceiling`, above every finite step: all tied last."""
+    return np.where(np.isfinite(steps), steps, ceiling)
+
+
+def rank_p(steps_a: Sequence[float], steps_b: Sequence[float], permutations: int = PERMUTATIONS,
+           seed: int = PERMUTATION_SEED) -> float:
+    """Two-sided Mann-Whitney U test on steps to threshold, `inf` (never) tied in last place, with
+    the p-value from the permutation distribution of U. 1.0 when all the values are equal; NaN (no
+    test) when a group has a single seed, which no split of up to 38 seeds could show at 0.05."""
+    a, b = np.asarray(steps_a, float), np.asarray(steps_b, float)
+    if min(len(a), len(b)) < 2:
+        return math.nan
+    both = np.concatenate([a, b])
+    if np.all(both == both[0]):  # nothing to rank (every seed never, or all at one step)
+        return 1.0
+    finite = both[np.isfinite(both)]
+    ceiling = finite.max() + 1 if len(finite) else 0.0
+    method = scipy.stats.PermutationMethod(n_resamples=permutations, rng=np.random.default_rng(seed))
+    return float(scipy.stats.mannwhitneyu(_never_last(a, ceiling), _never_last(b, ceiling), method=method).pvalue)
+
+
+def _mean_difference(x, y, axis):
+    return np.mean(x, axis=axis) - np.mean(y, axis=axis)
+
+
+def permutation_p(a: Sequence[float], b: Sequence[float], permutations: int = PERMUTATIONS,
+                  seed: int = PERMUTATION_SEED) -> float:
+    """Two-sided permutation test of the difference of the means of `a` and `b` (scipy's
+    permutation_test: every split of the pooled values when there are at most `permutations` of
+    them, else `permutations` random ones from a generator seeded with `seed`). NaN when a group has a
+    single seed, as `rank_p`."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    if min(len(a), len(b)) < 2:
+        return math.nan
+    if np.all(np.concatenate([a, b]) == a[0]):
+        return 1.0
+    result = scipy.stats.permutation_test((a, b), _mean_difference, vectorized=True, n_resamples=permutations,
+                                          rng=np.random.default_rng(seed))
+    return float(result.pvalue)
+
+
+def holm(p_values: Sequence[float]) -> np.ndarray:
+    """Holm's step-down adjusted p-values, in the order given: the k-th smallest of m is multiplied
+    by m - k + 1, then made non-decreasing in that order and capped at 1. NaN entries (no test) are
+    left out of the family and stay NaN."""
+    p = np.asarray(p_values, float)
+    adjusted = np.full(p.shape, np.nan)
+    tested = np.flatnonzero(~np.isnan(p))
+    order = tested[np.argsort(p[tested], kind="stable")]
+    m = len(order)
+    scaled = p[order] * (m - np.arange(m))
+    adjusted[order] = np.minimum(np.maximum.accumulate(scaled), 1.0)
+    return adjusted
+
+
+def probability_of_improvement(a: Sequence[float], b: Sequence[float]) -> float:
+    """rliable's probability of improvement of `a` over `b` on one task: P(A > B) + P(A = B) / 2 for
+    a seed drawn from each group (the Mann-Whitney U of `a` divided by the number of pairs)."""
+    from rliable import metrics  # the report's dependency (the plots extra)
+
+    return float(metrics.probability_of_improvement(np.asarray(a, float)[:, None], np.asarray(b, float)[:, None]))
+
+
+# --- power ---------------------------------------------------------------------------------------
+@functools.cache
+def fisher_rejections(seeds_a: int, seeds_b: int, alpha: float = ALPHA) -> np.ndarray:
+    """Boolean (seeds_a + 1, seeds_b + 1) array: [x, y] is True when Fisher's two-sided test at level
+    `alpha` rejects x of `seeds_a` against y of `seeds_b`. Computed for all tables at once: given the
+    total t = x + y, x follows a hypergeometric distribution, and a table's p-value is the probability
+    of the tables with that total that are no more likely than it (scipy's definition)."""
+    rejects = np.zeros((seeds_a + 1, seeds_b + 1), bool)
+    for total in range(seeds_a + seeds_b + 1):
+        x = np.arange(max(0, total - seeds_b), min(total, seeds_a) + 1)
+        pmf = scipy.stats.hypergeom.pmf(x, seeds_a + seeds_b, total, seeds_a)
+        p = (pmf[None, :] <= pmf[:, None] * _RELATIVE_TOLERANCE) @ pmf  # row i: tables no likelier than i
+        rejects[x, total - x] = p <= alpha
+    return rejects
+
+
+def power(rate_a: float, rate_b: float, seeds_a: int, seeds_b: int | None = None, alpha: float = ALPHA) -> float:
+    """Probability that Fisher's two-sided test at `alpha` rejects when the true reach rates are
+    `rate_a` and `rate_b` with `seeds_a` and `seeds_b` (default: as many) seeds: the sum of the
+    binomial probabilities of every table it rejects."""
+    seeds_b = seeds_a if seeds_b is None else seeds_b
+    for rate in (rate_a, rate_b):
+        if not 0 <= rate <= 1:
+            raise ValueError(f"a reach rate must be in [0, 1], got {rate}")
+    chance = np.outer(scipy.stats.binom.pmf(np.arange(seeds_a + 1), seeds_a, rate_a),
+                      scipy.stats.binom.pmf(np.arange(seeds_b + 1), seeds_b, rate_b))
+    return float(chance[fisher_rejections(seeds_a, seeds_b, alpha)].sum())
+
+
+def seeds_needed(rate_a: float, rate_b: float, target: float = POWER, alpha: float = ALPHA,
+                 most: int = MAX_SEEDS) -> int | None:
+    """The fewest seeds per group with which Fisher's test at `alpha` detects reach rates `rate_a`
+    against `rate_b` with probability at least `target`; None when even `most` seeds do not."""
+    if rate_a == rate_b:
+        return None
+    return next((n for n in range(2, most + 1) if power(rate_a, rate_b, n, alpha=alpha) >= target), None)
+
+
+# --- a comparison of two groups ------------------------------------------------------------------
+TESTS = ("reach", "steps", "final", "late")
+"""The tests made for each pair: Fisher's on reach counts, the rank test on steps to threshold, and the
+permutation tests on final and on late-window success from p0."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Comparison:
+    """Group A against group B, each up to the same step."""
+
+    a: SeedOutcomes
+    b: SeedOutcomes
+    p: dict[str, float]
+    """Raw two-sided p-value of each of `TESTS`."""
+    sooner: float
+    """P(a seed of A reaches the threshold before one of B) + P(tie) / 2, never-reached seeds tied last."""
+    improvement: float
+    """Probability of improvement of A over B on late-window success from p0."""
+    power: float
+    """Power of Fisher's test with these seeds if the true reach rates were the observed ones."""
+    seeds_needed: int | None
+    """Seeds per group for `POWER` at the observed reach rates; None when they are equal or need more
+    than `MAX_SEEDS`."""
+
+
+def compare(a: SeedOutcomes, b: SeedOutcomes, permutations: int = PERMUTATIONS,
+            seed: int = PERMUTATION_SEED) -> Comparison:
+    """Every test of `TESTS` on A against B, the effect sizes and the power at the observed reach rates."""
+    reach_a, reach_b = a.reach, b.reach
+    p = {"reach": fisher_p(reach_a.reached, reach_a.seeds, reach_b.reached, reach_b.seeds),
+         "steps": rank_p(a.first_reach, b.first_reach, permutations, seed),
+         "final": permutation_p(a.final, b.final, permutations, seed),
+         "late": permutation_p(a.late, b.late, permutations, seed)}
+    finite = np.concatenate([a.first_reach, b.first_reach])
+    ceiling = finite[np.isfinite(finite)].max() + 1 if np.isfinite(finite).any() else 0.0
+    sooner = probability_of_improvement(-_never_last(a.first_reach, ceiling), -_never_last(b.first_reach, ceiling))
+    return Comparison(a, b, p, sooner, probability_of_improvement(a.late, b.late),
+                      power(reach_a.rate, reach_b.rate, reach_a.seeds, reach_b.seeds),
+                      seeds_needed(reach_a.rate, reach_b.rate))
+
+
+def holm_by_test(comparisons: Sequence[Comparison]) -> list[dict[str, float]]:
+    """Holm-adjusted p-values, one family per test across all the comparisons given."""
+    adjusted = {test: holm([c.p[test] for c in comparisons]) for test in TESTS}
+    return [{test: float(adjusted[test][i]) for test in TESTS} for i in range(len(comparisons))]
+
+
+def decision(comparison: Comparison, adjusted: dict[str, float], name_a: str, name_b: str,
+             alpha: float = ALPHA) -> str:
+    """What the tests that reject at `alpha` after Holm's correction say, or "not enough seeds to
+    decide" when none does."""
+    c = comparison
+    better = {"reach": c.a.reach.rate > c.b.reach.rate, "steps": c.sooner > 0.5,
+              "final": c.a.final.mean() > c.b.final.mean(), "late": c.a.late.mean() > c.b.late.mean()}
+    words = {"reach": "reaches the threshold more often", "steps": "reaches it sooner",
+             "final": "ends higher", "late": "is higher late in training"}
+    said = {}
+    for test in TESTS:
+        if adjusted[test] <= alpha:
+            said.setdefault(name_a if better[test] else name_b, []).append(words[test])
+    phrases = [f"{name} {' and '.join(filter(None, [', '.join(what[:-1]), what[-1]]))}" for name, what in said.items()]
+    return "; ".join(phrases) if phrases else "not enough seeds to decide"
