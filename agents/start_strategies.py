@@ -420,7 +420,7 @@ STRATEGY_PARAMS: dict[str, tuple[str, ...]] = {
     "uniform_ss": (),
     "goaldist_ss": ("goal", "temperature", "temperature_growth", "max_temperature"),
     "reverse_ss": ("episode_ids", "per_demo_buffer_size", "reverse_step_size", "demo_sampler",
-                   "demo_horizon_to_max_steps_ratio", "max_steps_min"),
+                   "demo_horizon_to_max_steps_ratio", "max_steps_min", "forward_states"),
 }
 """The keyword parameters each CLI name accepts in `make_start_strategy`."""
 STRATEGY_NAMES = tuple(STRATEGY_PARAMS)
@@ -470,7 +470,7 @@ def strategy_settings(name: str, **params: Any) -> dict[str, Any]:
     builder = {"p0": P0Start, "uniform_ss": UniformSS, "auxss": AuxSS, "goaldist_ss": GoalDistSS,
                "reverse_ss": _reverse_curriculum_class(),
                "omega_ss": OmegaSS.from_env if "env" in params else OmegaSS}[name]
-    skipped = {"self", "states", "env", "omega", "episode_ids"}
+    skipped = {"self", "states", "env", "omega", "episode_ids", "forward_states"}
     settings = {parameter.name: params.get(parameter.name, parameter.default)
                 for parameter in inspect.signature(builder).parameters.values() if parameter.name not in skipped}
     return json.loads(json.dumps(settings, default=lambda value: np.asarray(value).tolist()))

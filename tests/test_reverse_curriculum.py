@@ -9,6 +9,7 @@ import pytest
 
 import lava_bridge_mj
 from lava_bridge_mj.agents import ReverseCurriculumSS, StartStateWrapper, goal_reaching_demos, make_start_strategy
+from lava_bridge_mj.agents.reverse_curriculum import forward_scores, rank_weights
 from lava_bridge_mj.agents.start_state_wrapper import StartSelector
 from lava_bridge_mj.agents.start_strategies import NO_STATE, strategy_settings
 
@@ -16,6 +17,7 @@ from lava_bridge_mj.agents.start_strategies import NO_STATE, strategy_settings
 STATES = np.stack([np.arange(7.0), np.zeros(7), np.zeros(7), np.zeros(7)], axis=1)
 EPISODE_IDS = np.array([0, 0, 0, 0, 1, 1, 1])
 A_LAST, B_LAST = 3, 6
+P0_STATES = np.array([[10.0, 0, 0, 0], [11.0, 0, 0, 0], [12.0, 0, 0, 0]])  # indices 7-9 with forward_states
 
 
 def curriculum(**params):
@@ -90,6 +92,46 @@ def test_once_every_demonstration_is_solved_episodes_start_from_p0():
     rc.update(NO_STATE, 40, success=False)  # a p0 episode changes nothing
     rc.update(0, 5, success=True)  # nor one that started before the switch
     assert rc.phase == "p0"
+
+
+def solve_every_demonstration(rc):
+    for index in (A_LAST, 0, B_LAST, 4):  # with m = 1 and a step of 5: one success moves t_i to 0
+        rc.update(index, 3, success=True)
+    assert rc.solved.all()
+
+
+def test_forward_curriculum_scores_and_ranks_p0_states_by_hand():
+    assert forward_scores([[True], [], [True] * 4, [True, True, True, False], [False] * 5]).tolist() == [3, 2, 1, 3, 2]
+    # ties share a rank; c values at or above a value give it rank c + 1 (RFCL's "rankmin")
+    np.testing.assert_allclose(rank_weights(np.array([3.0, 2.0, 1.0]), 0.1),
+                               np.array([2.0, 3.0, 4.0]) ** -10 / (2.0**-10 + 3.0**-10 + 4.0**-10), rtol=1e-12)
+    np.testing.assert_allclose(rank_weights(np.array([0.0, 1.0, 1.0]), 0.1),
+                               np.array([4.0, 3.0, 3.0]) ** -10 / (4.0**-10 + 2 * 3.0**-10), rtol=1e-12)
+
+    rc = curriculum(per_demo_buffer_size=1, reverse_step_size=5, forward_states=P0_STATES)
+    assert len(rc.states) == 10 and rc.demo_states.shape == (7, 4)
+    np.testing.assert_array_equal(rc.weights[7:], 0)  # no p0 state before the demonstrations are solved
+    solve_every_demonstration(rc)
+    assert rc.phase == "forward"
+    np.testing.assert_allclose(rc.weights, [0] * 7 + [1 / 3] * 3, rtol=1e-12)  # every score 2, staleness 0
+
+    rng = np.random.default_rng(0)
+    first = rc.sample(rng)
+    assert first in (7, 8, 9) and rc.time_limit(first) is None  # p0 starts keep the env's limit
+    staleness = np.where(np.arange(7, 10) == first, 0.0, 1.0)  # the drawn state 0, the others 1
+    expected = 0.9 / 3 + 0.1 * rank_weights(staleness, 0.1)
+    np.testing.assert_allclose(rc.weights[7:], expected, rtol=1e-12)
+
+    # scores 3 (one success in 5: the frontier), 2 (none), 1 (4 of 5: mastered)
+    rc.update(7, 20, success=True)
+    for _ in range(4):
+        rc.update(9, 20, success=True)
+    assert rc.state_dict()["forward_outcomes"] == [[True], [], [True] * 4]
+    scores = np.array([2.0, 3.0, 4.0]) ** -10 / (2.0**-10 + 3.0**-10 + 4.0**-10)
+    np.testing.assert_allclose(rc.weights[7:], 0.9 * scores + 0.1 * rank_weights(staleness, 0.1), rtol=1e-12)
+    for _ in range(6):  # only the last 5 outcomes count
+        rc.update(8, 20, success=False)
+    assert rc.state_dict()["forward_outcomes"][1] == [False] * 5
 
 
 def test_remaining_sampler_weighs_demos_by_how_far_they_are_from_their_start():
@@ -193,18 +235,20 @@ def play(strategy, rng, episodes):
 
 def test_state_dict_round_trip_mid_curriculum_gives_identical_futures():
     rng = np.random.default_rng(7)
-    trained = curriculum(per_demo_buffer_size=2)
+    trained = curriculum(per_demo_buffer_size=2, forward_states=P0_STATES)
     play(trained, rng, 9)
     state = json.loads(json.dumps(trained.state_dict()))
     assert trained.phase == "reverse" and state["start_steps"] != [3, 2]  # mid-curriculum
-    restored = curriculum(per_demo_buffer_size=2)
+    restored = curriculum(per_demo_buffer_size=2, forward_states=P0_STATES)
     restored.load_state_dict(state)
     assert restored.state_dict() == trained.state_dict()
     rng_state = rng.bit_generator.state
     future = play(trained, rng, 60)
     rng.bit_generator.state = rng_state
     assert play(restored, rng, 60) == future
-    assert restored.state_dict() == trained.state_dict() and trained.phase == "p0"  # the switch happened in both
+    # the switch to the forward curriculum happened in both, and its staleness and scores agree
+    assert restored.state_dict() == trained.state_dict() and trained.phase == "forward"
+    assert {7, 8, 9} <= set(future) and any(trained.state_dict()["forward_outcomes"])
 
 
 def test_selector_round_trip_restores_the_running_episodes_time_limit():
@@ -221,7 +265,8 @@ def test_selector_round_trip_restores_the_running_episodes_time_limit():
 @pytest.mark.parametrize("change, match", [
     (dict(start_steps=[4, 2]), "start_steps"), (dict(start_steps=[3]), "start_steps"),
     (dict(outcomes=[[True] * 4, []]), "outcomes"), (dict(outcomes=[[1], []]), "outcomes"),
-    (dict(solved=[True, False]), "solved"),
+    (dict(solved=[True, False]), "solved"), (dict(staleness=[0]), "staleness"),
+    (dict(forward_outcomes=[[True]]), "forward_outcomes"),
 ])
 def test_load_state_dict_rejects_inconsistent_states(change, match):
     rc = curriculum()
@@ -255,6 +300,8 @@ def test_make_start_strategy_builds_it_and_settings_record_its_defaults():
     (dict(episode_ids=[0, 0, 1, 1, 0, 2, 2]), r"^episode_ids must keep each demonstration's states together"),
     (dict(episode_ids=[0.0] * 7), r"^episode_ids must be integers, got dtype float64$"),
     (dict(episode_ids=[0, 1]), r"^episode_ids must have shape \(7,\)"),
+    (dict(forward_states=np.zeros((5, 3))), r"^forward_states must be a \(k, 4\) array .* got shape \(5, 3\)$"),
+    (dict(forward_states=[]), r"^forward_states must be a \(k, 4\) array of finite p0 states with k >= 1, or None, got \[\]$"),
 ])
 def test_bad_parameters_are_rejected_naming_the_value(params, match):
     params = {"episode_ids": EPISODE_IDS, **params}
