@@ -1,6 +1,7 @@
 """Agents: SAC, start-state strategies and the wrapper that plugs them into any resettable env."""
 
 from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
+from lava_bridge_mj.agents.reverse_curriculum import ReverseCurriculumSS, goal_reaching_demos
 from lava_bridge_mj.agents.sac import SAC, SACConfig
 from lava_bridge_mj.agents.start_state_wrapper import StartStateWrapper
 from lava_bridge_mj.agents.start_strategies import (
@@ -17,5 +18,5 @@ from lava_bridge_mj.agents.start_strategies import (
 )
 
 __all__ = ["NO_STATE", "STRATEGY_NAMES", "SAC", "AuxSS", "GoalDistSS", "OmegaSS", "P0Start", "ReplayBuffer",
-           "SACConfig", "StartStateWrapper", "StartStrategy", "UniformSS", "estimate_random_policy_safety",
-           "make_start_strategy"]
+           "ReverseCurriculumSS", "SACConfig", "StartStateWrapper", "StartStrategy", "UniformSS",
+           "estimate_random_policy_safety", "goal_reaching_demos", "make_start_strategy"]

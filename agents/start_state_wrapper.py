@@ -39,13 +39,17 @@ class StartSelector:
 
     `max_episode_steps` is the env's step limit where it has one: a strategy whose `horizon`
     differs from it is refused with a ValueError naming both, since it would score every episode
-    length on the wrong scale.
+    length on the wrong scale. `time_limit` is the running episode's own step limit from
+    `strategy.time_limit(start_index)`, capped by `max_episode_steps` (None: the env's limit alone);
+    `reaches_time_limit()` says whether the step being taken is the last it allows.
     """
 
     def __init__(self, strategy: StartStrategy, seed: int | None = None, *,
                  max_episode_steps: int | None = None):
         check_horizon(strategy, max_episode_steps)
         self.strategy = strategy
+        self.max_episode_steps = max_episode_steps
+        self.time_limit: int | None = None
         self._rng = _start_rng(seed)
         self.start_index = NO_STATE
         self.episode_length = 0
@@ -58,12 +62,24 @@ class StartSelector:
         """Start a new episode: the candidate state to reset to, or None for the env's own start."""
         self.episode_length = 0
         self.start_index, self._report_pending = self.strategy.sample(self._rng), True
+        self._set_time_limit()
         return None if self.start_index == NO_STATE else self.strategy.states[self.start_index].copy()
 
     def external_start(self) -> None:
         """Start a new episode whose start the strategy did not choose."""
         self.episode_length = 0
         self.start_index, self._report_pending = NO_STATE, False
+        self.time_limit = None
+
+    def _set_time_limit(self) -> None:
+        limit = None if self.start_index == NO_STATE else self.strategy.time_limit(self.start_index)
+        if limit is not None and self.max_episode_steps is not None:
+            limit = min(limit, self.max_episode_steps)
+        self.time_limit = limit
+
+    def reaches_time_limit(self) -> bool:
+        """Whether the step being taken (not yet counted by `step`) is the last `time_limit` allows."""
+        return self.time_limit is not None and self.episode_length + 1 >= self.time_limit
 
     def step(self, ended: bool, success: bool) -> None:
         self.episode_length += 1
@@ -82,6 +98,10 @@ class StartSelector:
         self.strategy.load_state_dict(state["strategy"])
         self.start_index, self.episode_length = state["start_index"], state["episode_length"]
         self._report_pending = state["report_pending"]
+        if self._report_pending:
+            self._set_time_limit()
+        else:
+            self.time_limit = None
 
 
 class StartStateWrapper(gymnasium.Wrapper):
@@ -96,6 +116,10 @@ class StartStateWrapper(gymnasium.Wrapper):
 
     The reset info gains `start_index`: the index into `strategy.states`, or `NO_STATE` (-1) when
     the episode did not start from a candidate state.
+
+    A strategy may give an episode a shorter step limit than the env's (`strategy.time_limit(index)`;
+    RFCL's reverse curriculum does): the wrapper then returns `truncated=True` on the episode's
+    `time_limit`-th step, unless the env terminated it on that step, and reports it as truncated.
 
     Args:
         env: any gymnasium env whose `reset` accepts `options={"state": s}`.
@@ -122,6 +146,11 @@ class StartStateWrapper(gymnasium.Wrapper):
     def episode_length(self) -> int:
         return self.selector.episode_length
 
+    @property
+    def time_limit(self) -> int | None:
+        """The running episode's step limit set by the strategy (capped by the env's), or None."""
+        return self.selector.time_limit
+
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         if seed is not None:
             self.selector.reseed(seed)
@@ -142,5 +171,6 @@ class StartStateWrapper(gymnasium.Wrapper):
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         obs, reward, terminated, truncated, info = self.env.step(action)
+        truncated = truncated or (not terminated and self.selector.reaches_time_limit())
         self.selector.step(terminated or truncated, info.get("is_success", False))
         return obs, reward, terminated, truncated, info

@@ -11,7 +11,8 @@ and at each reset picks an index into it; some learn from how each episode went.
   both work), so a resumed run continues where it stopped.
 
 The strategies are the paper's (docs/design.md, section 1): `AuxSS` (Algorithm 2), `OmegaSS`,
-`UniformSS`, `GoalDistSS`, and `P0Start` for the MDP's own start distribution.
+`UniformSS`, `GoalDistSS`, and `P0Start` for the MDP's own start distribution; RFCL's reverse
+curriculum, `ReverseCurriculumSS`, lives in agents/reverse_curriculum.py.
 `make_start_strategy(name, states, **params)` builds one by its CLI name.
 """
 
@@ -101,6 +102,11 @@ class StartStrategy:
     def update(self, index: int, episode_length: int, success: bool = False) -> None:
         """Report a finished episode that started from `states[index]`; static strategies ignore it."""
         self._check_episode(index, episode_length)
+
+    def time_limit(self, index: int) -> int | None:
+        """The step limit of an episode that starts from `states[index]`, or None for the env's own
+        limit (every strategy but the reverse curriculum); `StartStateWrapper` truncates there."""
+        return None
 
     def _check_episode(self, index: int, episode_length: int) -> None:
         if not 0 <= index < len(self._states):
@@ -413,18 +419,21 @@ STRATEGY_PARAMS: dict[str, tuple[str, ...]] = {
     "omega_ss": ("omega", "env", "k", "rollouts", "seed", "clamp"),
     "uniform_ss": (),
     "goaldist_ss": ("goal", "temperature", "temperature_growth", "max_temperature"),
+    "reverse_ss": ("episode_ids", "per_demo_buffer_size", "reverse_step_size", "demo_sampler",
+                   "demo_horizon_to_max_steps_ratio", "max_steps_min", "forward_states"),
 }
 """The keyword parameters each CLI name accepts in `make_start_strategy`."""
 STRATEGY_NAMES = tuple(STRATEGY_PARAMS)
 
 
 def make_start_strategy(name: str, states: Any = None, **params: Any) -> StartStrategy:
-    """Build a start strategy by its CLI name: p0, auxss, omega_ss, uniform_ss or goaldist_ss.
+    """Build a start strategy by its CLI name: p0, auxss, omega_ss, uniform_ss, goaldist_ss or reverse_ss.
 
     `states` is the (n, 4) candidate set (ignored, and may be None, for p0). Parameters are the
     classes' keyword arguments (`STRATEGY_PARAMS` lists them). omega_ss takes exactly one of
     `omega=` (precomputed, e.g. cached) or `env=` (estimated here by
-    `estimate_random_policy_safety` with `k`, `rollouts`, `seed`). goaldist_ss needs `goal=(x, y)`.
+    `estimate_random_policy_safety` with `k`, `rollouts`, `seed`). goaldist_ss needs `goal=(x, y)`,
+    reverse_ss `episode_ids=` (agents/reverse_curriculum.py).
     Unknown names or parameters raise ValueError naming them and what is accepted.
     """
     _check_params(name, params)
@@ -432,6 +441,8 @@ def make_start_strategy(name: str, states: Any = None, **params: Any) -> StartSt
         return P0Start()
     if name == "uniform_ss":
         return UniformSS(states)
+    if name == "reverse_ss":
+        return _reverse_curriculum_class()(states, **params)
     if name == "auxss":
         return AuxSS(states, **params)
     if name == "goaldist_ss":
@@ -457,11 +468,19 @@ def strategy_settings(name: str, **params: Any) -> dict[str, Any]:
     """
     _check_params(name, params)
     builder = {"p0": P0Start, "uniform_ss": UniformSS, "auxss": AuxSS, "goaldist_ss": GoalDistSS,
+               "reverse_ss": _reverse_curriculum_class(),
                "omega_ss": OmegaSS.from_env if "env" in params else OmegaSS}[name]
-    skipped = {"self", "states", "env", "omega"}
+    skipped = {"self", "states", "env", "omega", "episode_ids", "forward_states"}
     settings = {parameter.name: params.get(parameter.name, parameter.default)
                 for parameter in inspect.signature(builder).parameters.values() if parameter.name not in skipped}
     return json.loads(json.dumps(settings, default=lambda value: np.asarray(value).tolist()))
+
+
+def _reverse_curriculum_class() -> type[StartStrategy]:
+    # imported on use: agents/reverse_curriculum.py builds on this module
+    from .reverse_curriculum import ReverseCurriculumSS
+
+    return ReverseCurriculumSS
 
 
 def _check_params(name: str, params: dict[str, Any]) -> None:
