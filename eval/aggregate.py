@@ -3,8 +3,9 @@
 A run is any directory, at any depth under the one given, that holds both `config.json` and a
 `metrics.csv` with at least one row (eval/runner.py writes them); names of directories are not read.
 
-**Groups.** Runs are grouped by method and demo set first, labelled like `auxss (0.5K)`. Runs of one
-method and demo set whose configurations differ in anything else (every config.json entry but `seed`
+**Groups.** Runs are grouped by task (config.json's `env_id`), method and demo set first, labelled like
+`auxss (0.5K)`, with ` on TASK` added for a task other than LavaBridge-v0. Runs of one
+task, method and demo set whose configurations differ in anything else (every config.json entry but `seed`
 and `steps`, nested sections flattened to dotted names such as `strategy.sigma` or `sac.hidden_sizes`) are split
 further (`Group.settings` holds the entries that differ, `default` standing for a run that leaves a
 free-form entry such as `strategy.sigma` out). The label names the entries that are not RunConfig's
@@ -56,6 +57,7 @@ import numpy as np
 import scipy.stats
 
 from lava_bridge_mj.eval.summary import THRESHOLD, read_config, read_metrics, seed_summary
+from lava_bridge_mj.tasks import DEFAULT_ENV_ID, TASKS
 
 METRICS = ("success_p0", "success_ood", "train_return")
 """The metrics with curves: success rate from p0 and from ood, and the training return."""
@@ -84,6 +86,11 @@ class RunRecord:
     @property
     def demos(self) -> int:
         return int(self.config.get("demos", 500))
+
+    @property
+    def task(self) -> str:
+        """The run's task; a config.json from before `env_id` existed is LavaBridge-v0's."""
+        return str(self.config.get("env_id", DEFAULT_ENV_ID))
 
 
 def find_runs(root: str | Path, budget: float | None = None, seeds: Collection[int] | None = None) -> list[RunRecord]:
@@ -147,12 +154,13 @@ def default_settings() -> dict[str, str]:
 @dataclasses.dataclass
 class Group:
     """The seeds of one configuration. `settings` holds the config entries (dotted names, JSON text)
-    that set it apart from other groups of the same method and demo set; empty when there are none."""
+    that set it apart from other groups of the same task, method and demo set; empty when there are none."""
 
     method: str
     demos: int
     settings: dict[str, str]
     runs: list[RunRecord]
+    task: str = DEFAULT_ENV_ID
 
     @property
     def changed_settings(self) -> dict[str, str]:
@@ -163,7 +171,8 @@ class Group:
     @property
     def label(self) -> str:
         extra = ", ".join(f"{k}={v}" for k, v in self.changed_settings.items())
-        return f"{self.method} ({demos_label(self.demos)})" + (f" [{extra}]" if extra else "")
+        task = f" on {self.task}" if self.task != DEFAULT_ENV_ID else ""
+        return f"{self.method} ({demos_label(self.demos)})" + (f" [{extra}]" if extra else "") + task
 
     @property
     def seeds(self) -> list[int]:
@@ -191,19 +200,19 @@ class Group:
 
 
 def group_runs(runs: list[RunRecord]) -> list[Group]:
-    """Runs grouped by configuration (see the module docstring), in the runner's method order, then
-    demo set, then label; each group's runs in seed order."""
+    """Runs grouped by configuration (see the module docstring), in the suite's task order, then the
+    runner's method order, then demo set, then label; each group's runs in seed order."""
     from lava_bridge_mj.eval.runner import METHODS
 
     # an entry a config.json lacks (written before the field existed) counts as today's default
     defaults = default_settings()
-    by_base: dict[tuple[str, int], list[RunRecord]] = defaultdict(list)
+    by_base: dict[tuple[str, str, int], list[RunRecord]] = defaultdict(list)
     for run in runs:
-        by_base[run.method, run.demos].append(run)
+        by_base[run.task, run.method, run.demos].append(run)
     groups = []
-    for (method, demos), members in by_base.items():
-        flats = [{k: v for k, v in {**defaults, **_flatten(run.config)}.items() if k not in ("seed", "steps")}
-                 for run in members]
+    for (task, method, demos), members in by_base.items():
+        flats = [{k: v for k, v in {**defaults, **_flatten(run.config)}.items()
+                  if k not in ("seed", "steps", "env_id")} for run in members]
         names = sorted(set().union(*flats))
         differing = [name for name in names if len({flat.get(name, "default") for flat in flats}) > 1]
         split: dict[tuple, list[RunRecord]] = defaultdict(list)
@@ -213,11 +222,13 @@ def group_runs(runs: list[RunRecord]) -> list[Group]:
             group_members.sort(key=lambda run: (run.seed, str(run.path)))
             for a, b in zip(group_members, group_members[1:]):
                 if a.seed == b.seed:  # one seed counted twice would narrow every interval
-                    raise ValueError(f"seed {a.seed} of one configuration ({method}, {demos} demos) is in two "
-                                     f"run directories, {a.path} and {b.path}; report each run once")
-            groups.append(Group(method, demos, dict(zip(differing, values)), group_members))
+                    raise ValueError(f"seed {a.seed} of one configuration ({method}, {demos} demos on {task}) is in "
+                                     f"two run directories, {a.path} and {b.path}; report each run once")
+            groups.append(Group(method, demos, dict(zip(differing, values)), group_members, task))
     order = {method: i for i, method in enumerate(METHODS)}
-    groups.sort(key=lambda g: (order.get(g.method, len(order)), g.method, g.demos, g.label))
+    tasks = {task: i for i, task in enumerate(TASKS)}
+    groups.sort(key=lambda g: (tasks.get(g.task, len(tasks)), g.task, order.get(g.method, len(order)), g.method,
+                               g.demos, g.label))
     return groups
 
 

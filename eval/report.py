@@ -4,8 +4,8 @@
     python -m lava_bridge_mj.eval.report runs/sweep --out paper_figures
 
 Runs are found under DIR at any depth by their config.json and metrics.csv and grouped by configuration
-(eval/aggregate.py: method and demo set, plus any other setting that differs). OUT receives, each as
-PNG and PDF:
+(eval/aggregate.py: task, method and demo set, plus any other setting that differs). OUT receives, each
+as PNG and PDF (named TASK_NAME, with one part of report.md per task, when DIR holds runs of several tasks):
     benchmark          training return and success from p0 and from ood versus steps, every method
                        (its 0.5K-demo runs where it has them): the paper's benchmark comparison
     demo_size          the same for the methods that have both 0.5K and 7.5K runs (solid and dashed)
@@ -50,6 +50,7 @@ from lava_bridge_mj.eval.cli import _positive_int, format_seeds
 from lava_bridge_mj.eval import statistics as stats
 from lava_bridge_mj.eval.findings import check_findings, common_step, demo_size_rows, is_default, pick, variant_rows
 from lava_bridge_mj.eval.summary import read_start_weights
+from lava_bridge_mj.tasks import DEFAULT_ENV_ID
 from lava_bridge_mj.eval.sweep import seed_list
 
 STANDARD_DEMOS = 500
@@ -270,8 +271,8 @@ def _layout(run: RunRecord):
 
     fields = {f.name for f in dataclasses.fields(lava_bridge_mj.Layout)}
     env = run.config.get("env", {})
-    try:
-        return lava_bridge_mj.Layout(**{k: v for k, v in env.items() if k in fields})
+    try:  # the task's layout with any layout field the run's env settings change
+        return dataclasses.replace(lava_bridge_mj.task_layout(run.task), **{k: v for k, v in env.items() if k in fields})
     except (AttributeError, TypeError, ValueError) as error:
         raise ValueError(f"{run.path / 'config.json'}: its env settings make no maze ({error})") from None
 
@@ -298,8 +299,9 @@ def _runs_table(groups: list[Group]) -> list[str]:
     return lines
 
 
-def _maze_section(groups: list[Group], threshold: float, where: str, out: Path, warnings: list[str]) -> list[str]:
-    """Draw maze.png/pdf; the report's paragraph about it. A start_weights.npz that cannot be read is
+def _maze_section(groups: list[Group], threshold: float, where: str, out: Path, warnings: list[str],
+                  name: str = "maze") -> list[str]:
+    """Draw NAME.png/pdf; the report's paragraph about it. A start_weights.npz that cannot be read is
     passed over, with a line in `warnings`."""
     weights: dict[Path, tuple | None] = {}
 
@@ -335,10 +337,10 @@ def _maze_section(groups: list[Group], threshold: float, where: str, out: Path, 
         text = (f"The maze{with_states}. *No AuxSS run with start_weights.npz in {where}: the start weights "
                 f"are not shown.*")
     layout = _layout(source or groups[0].runs[0])
-    save_figure(maze_figure(layout, states, snapshots, caption), out, "maze")
+    save_figure(maze_figure(layout, states, snapshots, caption), out, name)
     notes = [f"*Skipped: {warning}*" for warning in warnings]
-    return [text, *(["", *notes] if notes else []), "", "![The maze and AuxSS start weights](maze.png)", "",
-            "[PDF](maze.pdf)"]
+    return [text, *(["", *notes] if notes else []), "", f"![The maze and AuxSS start weights]({name}.png)", "",
+            f"[PDF]({name}.pdf)"]
 
 
 def _last_evaluation_table(groups: list[Group], curves: dict[str, dict[str, Curve]]) -> list[str]:
@@ -448,7 +450,7 @@ def _pairwise_section(groups: list[Group], threshold: float) -> list[str]:
     return lines
 
 
-def _findings_section(groups: list[Group]) -> list[str]:
+def _findings_section(groups: list[Group], heading: str = "##") -> list[str]:
     step = common_step(groups)
     cut = f" Online methods are compared up to step {step:,.0f}, the last that all of them have." if step else ""
     lines = ["Each claim checked against the fixed criterion written in eval/findings.py (default "
@@ -457,7 +459,7 @@ def _findings_section(groups: list[Group]) -> list[str]:
     lines += [f"| {f.number} | {f.claim} | {f.measured} | **{f.verdict}** |" for f in check_findings(groups)]
     for title, rows in (("Demo-size study (finding 7): 0.5K vs 7.5K", demo_size_rows(groups)),
                         ("AuxSS ablations (finding 8)", variant_rows(groups))):
-        lines.extend(["", f"### {title}", ""])
+        lines.extend(["", f"{heading}# {title}", ""])
         lines.extend(rows or ["*No runs for this table here.*"])
     return lines
 
@@ -510,35 +512,56 @@ def _publish(staging: Path, out: Path) -> None:
 
 def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dict, threshold: float, reps: int,
                   budget: int | None, seeds: list[int] | None) -> list[str]:
-    """Every figure and report.md into `out`; returns the warnings."""
+    """Every figure and report.md into `out`; returns the warnings. Runs of one task make the report's
+    sections; runs of several tasks make one part per task (figures named TASK_NAME), since methods are
+    compared within a task only."""
     from lava_bridge_mj.eval.atomic import atomic_write_text
-    from lava_bridge_mj.eval.runner import METHODS
 
     warnings: list[str] = []
     where = ", ".join(f"`{root}`" for root in roots)
     selection = [f"evaluations up to step {budget:,}" if budget is not None else "",
                  f"seeds {format_seeds(sorted(seeds))}" if seeds is not None else ""]
     selection = " and ".join(part for part in selection if part)
-    lines = [f"# LavaBridge-v0 report: {where}" + (f", {selection}" if selection else ""), "",
+    tasks = list(dict.fromkeys(g.task for g in groups))
+    title = f"{tasks[0]} report" if len(tasks) == 1 else f"Report on {len(tasks)} tasks ({', '.join(tasks)})"
+    lines = [f"# {title}: {where}" + (f", {selection}" if selection else ""), "",
              f"{sum(len(g.runs) for g in groups)} runs in {len(groups)} groups (one configuration each; "
              f"eval/aggregate.py says how runs are grouped). Lines and table entries are interquartile means "
              f"(IQM) across seeds; bands and brackets are 95% stratified-bootstrap confidence intervals (rliable, "
              f"{reps:,} resamples, bootstrap seed {BOOTSTRAP_SEED}). Curves use the evaluation steps that every "
              f"seed of a group has. For bc and iql a step is a gradient step on the demos.", "",
              *_runs_table(groups)]
+    for task in tasks:
+        mine = [g for g in groups if g.task == task]
+        if len(tasks) == 1:
+            lines.extend(_task_sections(mine, curves, threshold, reps, where, out, warnings, "##", ""))
+        else:
+            lines.extend(["", f"## {task}", "", f"{sum(len(g.runs) for g in mine)} runs in {len(mine)} groups."])
+            lines.extend(_task_sections(mine, curves, threshold, reps, where, out, warnings, "###", f"{task}_"))
+    atomic_write_text(out / "report.md", "\n".join(lines) + "\n")
+    return warnings
+
+
+def _task_sections(groups: list[Group], curves: dict, threshold: float, reps: int, where: str, out: Path,
+                   warnings: list[str], heading: str, prefix: str) -> list[str]:
+    """The figures and tables of the groups of one task, under `heading`-level titles, figure files
+    named `prefix` + name."""
+    from lava_bridge_mj.eval.runner import METHODS
+
+    lines: list[str] = []
 
     def add_figure(name: str, title: str, chosen: list[Group], about: str, skipped: str,
                    wanted: tuple[str, ...] = ()) -> None:
-        lines.extend(["", f"## {title}", ""])
+        lines.extend(["", f"{heading} {title}", ""])
         if not chosen:
             lines.append(f"*Skipped: {skipped}*")
             return
-        save_figure(curves_figure(chosen, curves, title), out, name)
+        save_figure(curves_figure(chosen, curves, title), out, prefix + name)
         lines.append(about)
         missing = [m for m in wanted if m not in {g.method for g in chosen}]
         if missing:
             lines.append(f"Not in this directory: {', '.join(missing)}.")
-        lines.extend(["", f"![{title}]({name}.png)", "", f"[PDF]({name}.pdf)"])
+        lines.extend(["", f"![{title}]({prefix}{name}.png)", "", f"[PDF]({prefix}{name}.pdf)"])
 
     add_figure("benchmark", "Benchmark comparison", benchmark_groups(groups),
                "Every method, with 0.5K demo transitions where it has runs with them.", "no runs.", METHODS)
@@ -548,17 +571,16 @@ def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dic
     add_figure("start_distributions", "Start-distribution study", benchmark_groups(groups, START_STUDY),
                "SAC trained from each start-state distribution over the same candidate demo states.",
                f"none of {', '.join(START_STUDY)} has runs here.", START_STUDY)
-    lines.extend(["", "## The maze and AuxSS's start weights", "",
-                  *_maze_section(groups, threshold, where, out, warnings)])
-    lines.extend(["", "## At the last evaluation", "", *_last_evaluation_table(groups, curves)])
-    lines.extend(["", "## Over the last third of training", "", *_late_table(groups, reps)])
-    lines.extend(["", f"## Steps to p0 success >= {threshold:g}", "", *_threshold_table(groups, threshold)])
-    lines.extend(["", f"## Seeds reaching p0 success >= {threshold:g}", "", *_reach_table(groups, threshold)])
-    lines.extend(["", "## Pairwise tests", "", *_pairwise_section(groups, threshold)])
-    if threshold == THRESHOLD:  # the paper's claims are about 0.8
-        lines.extend(["", "## The paper's findings", "", *_findings_section(groups)])
-    atomic_write_text(out / "report.md", "\n".join(lines) + "\n")
-    return warnings
+    lines.extend(["", f"{heading} The maze and AuxSS's start weights", "",
+                  *_maze_section(groups, threshold, where, out, warnings, prefix + "maze")])
+    lines.extend(["", f"{heading} At the last evaluation", "", *_last_evaluation_table(groups, curves)])
+    lines.extend(["", f"{heading} Over the last third of training", "", *_late_table(groups, reps)])
+    lines.extend(["", f"{heading} Steps to p0 success >= {threshold:g}", "", *_threshold_table(groups, threshold)])
+    lines.extend(["", f"{heading} Seeds reaching p0 success >= {threshold:g}", "", *_reach_table(groups, threshold)])
+    lines.extend(["", f"{heading} Pairwise tests", "", *_pairwise_section(groups, threshold)])
+    if threshold == THRESHOLD and groups[0].task == DEFAULT_ENV_ID:  # the paper's claims: 0.8, its maze
+        lines.extend(["", f"{heading} The paper's findings", "", *_findings_section(groups, heading)])
+    return lines
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -313,7 +313,7 @@ def test_report_of_several_directories_and_a_run_given_twice(tmp_path, capsys):
     assert report.main([str(tmp_path / "protocol"), str(tmp_path / "protocol" / "auxss"), "--out",
                         str(tmp_path / "twice")]) == 2
     err = capsys.readouterr().err
-    assert "seed 0 of one configuration (auxss, 500 demos) is in two run directories" in err
+    assert "seed 0 of one configuration (auxss, 500 demos on LavaBridge-v0) is in two run directories" in err
     assert not (tmp_path / "twice").exists()
 
 
@@ -575,3 +575,46 @@ def test_report_refuses_options_that_would_run_for_hours(tmp_path, capsys, argv,
         report.main([str(tmp_path / "runs"), *argv])
     assert exit_.value.code == 2 and message in capsys.readouterr().err
     assert not (tmp_path / "runs" / "report").exists()
+
+
+def test_runs_of_several_tasks_are_grouped_and_compared_within_their_task(tmp_path, capsys):
+    sweep = tmp_path / "sweep"
+    for task, shift in (("LavaBridge-v0", 0.0), ("LavaBridgeNarrow-v0", -0.5)):
+        sub = sweep if task == "LavaBridge-v0" else sweep / task
+        for method in ("auxss", "uniform_ss"):
+            for seed in (0, 1):
+                p0 = list(np.clip(np.array([0.2, 0.9, 1.0]) + shift, 0, 1))
+                write_run(sub / f"{method}-d500" / f"seed{seed}", method=method, seed=seed, p0=p0,
+                          weights=method == "auxss", env_id=task)
+    groups = aggregate.group_runs(aggregate.find_runs(sweep))
+    assert [(g.task, g.method, g.label) for g in groups] == [
+        ("LavaBridge-v0", "auxss", "auxss (0.5K)"), ("LavaBridge-v0", "uniform_ss", "uniform_ss (0.5K)"),
+        ("LavaBridgeNarrow-v0", "auxss", "auxss (0.5K) on LavaBridgeNarrow-v0"),
+        ("LavaBridgeNarrow-v0", "uniform_ss", "uniform_ss (0.5K) on LavaBridgeNarrow-v0")]
+    assert all(g.settings == {} for g in groups)  # the task is not a setting of the method
+    assert report.main([str(sweep), "--reps", "50"]) == 0
+    out = sweep / "report"
+    text = (out / "report.md").read_text()
+    assert text.startswith("# Report on 2 tasks (LavaBridge-v0, LavaBridgeNarrow-v0)")
+    v0, narrow = text.split("\n## LavaBridge-v0\n")[1].split("\n## LavaBridgeNarrow-v0\n")
+    # each task's part compares its own groups only: one pair each, never across tasks
+    assert "| auxss (0.5K) | uniform_ss (0.5K) |" in v0 and "on LavaBridgeNarrow-v0" not in v0
+    assert "| auxss (0.5K) on LavaBridgeNarrow-v0 | uniform_ss (0.5K) on LavaBridgeNarrow-v0 |" in narrow
+    assert "| auxss (0.5K) | uniform_ss (0.5K) on" not in text
+    # both reach 0.8 on v0 (2 of 2 seeds) and never on Narrow, where success tops out at 0.5
+    assert "| auxss (0.5K) | 100,000" not in v0  # (steps are 1,000-3,000)
+    assert re.search(r"\| auxss \(0\.5K\) on LavaBridgeNarrow-v0 \| [0-9,]+ \| 0 of 2 \[", narrow)
+    assert re.search(r"\| auxss \(0\.5K\) \| [0-9,]+ \| 2 of 2 \[", v0)
+    assert "The paper's findings" in v0 and "The paper's findings" not in narrow
+    for task in ("LavaBridge-v0", "LavaBridgeNarrow-v0"):
+        for name in ("benchmark", "start_distributions", "maze"):
+            assert (out / f"{task}_{name}.png").is_file() and f"({task}_{name}.png)" in text
+
+
+def test_the_maze_figure_of_a_task_draws_its_own_layout(tmp_path):
+    import lava_bridge_mj
+
+    write_run(tmp_path / "seed0", env_id="LavaBridgeTwoCrossings-v0")
+    [run] = aggregate.find_runs(tmp_path)
+    assert report._layout(run) == lava_bridge_mj.task_layout("LavaBridgeTwoCrossings-v0")
+    assert report._layout(run) != lava_bridge_mj.task_layout("LavaBridge-v0")
