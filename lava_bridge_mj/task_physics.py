@@ -17,6 +17,7 @@ physics and the rules.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import mujoco
@@ -214,6 +215,12 @@ class LavaBridgeTask:
     def observation(data: mujoco.MjData) -> np.ndarray:
         """The observation (x, y, vx, vy) of `data`: its whole physics state, a copy."""
         return np.concatenate([data.qpos, data.qvel])
+
+    @staticmethod
+    def observations(datas: Sequence[mujoco.MjData]) -> np.ndarray:
+        """The observations (K, 4) of K MjData, row i `observation(datas[i])`. Gathered as Python
+        floats: half the time of stacking K small arrays, the same float64 values."""
+        return np.array([data.qpos.tolist() + data.qvel.tolist() for data in datas])
 
     # --- dynamics ------------------------------------------------------------------------------
     @staticmethod

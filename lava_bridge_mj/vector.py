@@ -158,8 +158,7 @@ class LavaBridgeVectorEnv(VectorEnv):
         return [None if s is None else check_integer("seed", s, 0) for s in seed]
 
     def _observations(self) -> np.ndarray:
-        observation = self.task.observation
-        return np.stack([observation(d) for d in self.datas])
+        return self.task.observations(self.datas)
 
     def _info(self, success: np.ndarray, lava: np.ndarray) -> dict[str, np.ndarray]:
         every = np.ones(self.num_envs, dtype=bool)  # gymnasium's vector info: a value and a presence mask

@@ -173,3 +173,13 @@ def test_free_motion_is_only_claimed_where_no_contact_can_occur(env_id):
             mujoco.mj_step1(task.model, data)
             assert data.ncon == 0, (state, push)
     assert accepted and refused, (accepted, refused)
+
+
+def test_observations_of_several_datas_are_their_observations():
+    task = LavaBridgeTask(Layout())
+    datas = [mujoco.MjData(task.model) for _ in range(3)]
+    for data, x in zip(datas, (-4.0, -3.0, 4.0)):
+        task.set_state(data, np.array([x, 0.1 / 3]), np.array([0.7, -1 / 3]))
+    observations = task.observations(datas)
+    assert observations.shape == (3, 4) and observations.dtype == np.float64
+    np.testing.assert_array_equal(observations, np.stack([task.observation(d) for d in datas]))
