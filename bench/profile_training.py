@@ -18,6 +18,7 @@ import argparse
 import functools
 import platform
 import subprocess
+import sys
 import tempfile
 import time
 from collections import defaultdict
@@ -161,8 +162,8 @@ def main(argv: list[str] | None = None) -> None:
     train_parts = [k for k in rows if k.startswith(("train:", "checkpoints")) or k == "update: total"]
     rows["other (training loop, bookkeeping)"] = total - rows.get("eval: total", 0.0) - sum(rows[k] for k in train_parts)
     updates = calls["update: total"]
-    print(f"# python bench/profile_training.py {' '.join(argv) if argv is not None else ''}".rstrip()
-          + f" (commit {commit})")
+    given = sys.argv[1:] if argv is None else argv
+    print(f"# python bench/profile_training.py {' '.join(given)}".rstrip() + f" (commit {commit})")
     print(f"python {platform.python_version()} | torch {torch.__version__} | mujoco {mujoco.__version__} | "
           f"numpy {np.__version__} | {args.threads} torch thread(s)")
     print(f"job: {args.method}, {args.seeds} seeds, {args.steps} steps (updates from step {args.learning_starts}: "

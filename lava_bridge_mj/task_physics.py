@@ -109,7 +109,8 @@ class LavaBridgeTask:
         mujoco.mj_resetData(model, probe)
         mujoco.mj_fwdPosition(model, probe)
         ball = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "ball")
-        touches = ((model.geom_contype[ball] & model.geom_conaffinity) | (model.geom_contype & model.geom_conaffinity[ball])) != 0
+        touches = ((model.geom_contype[ball] & model.geom_conaffinity)
+                   | (model.geom_contype & model.geom_conaffinity[ball])) != 0
         touches[ball] = False
         obstacles = np.flatnonzero(touches)
         # rectangles of the geoms' world bounding boxes: |R| half-sizes about the box's world centre
@@ -134,13 +135,15 @@ class LavaBridgeTask:
             reach_base += h * b
             reach_per_speed += h * a
         self._reach = ((reach_base + CLEARANCE_SLACK).tolist(), reach_per_speed.tolist())
+        disabled = mujoco.mjtDisableBit
         covered = (model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
-                   and not model.opt.disableflags & (mujoco.mjtDisableBit.mjDSBL_EULERDAMP | mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL)
+                   and not model.opt.disableflags & (disabled.mjDSBL_EULERDAMP | disabled.mjDSBL_CLAMPCTRL)
                    and model.nv == 2 and model.nu == 2 and list(model.actuator_trnid[:, 0]) == [0, 1]
                    and (model.jnt_type == mujoco.mjtJoint.mjJNT_SLIDE).all()
                    and np.array_equal(model.jnt_axis, [[1, 0, 0], [0, 1, 0]])
                    and not model.jnt_stiffness.any() and not model.dof_frictionloss.any()
-                   and not model.jnt_limited.any() and model.neq == 0 and model.opt.density == 0 and model.opt.viscosity == 0
+                   and not model.jnt_limited.any() and model.neq == 0
+                   and model.opt.density == 0 and model.opt.viscosity == 0
                    and (model.geom_bodyid[obstacles] == 0).all() and model.actuator_ctrllimited.all())
         if not covered:
             self._obstacles = [(-math.inf, -math.inf, math.inf, math.inf)]

@@ -134,7 +134,9 @@ def test_free_motion_steps_equal_the_checked_loop_bit_for_bit(env_id):
         step = fast.step(actions)
         same_steps(step, checked.step(actions))
         obs = step[0]
-        success, lava, truncated = success + step[4]["is_success"].sum(), lava + step[4]["lava"].sum(), truncated + step[3].sum()
+        success += step[4]["is_success"].sum()
+        lava += step[4]["lava"].sum()
+        truncated += step[3].sum()
         single_action = expert.act(single_obs) + rng.normal(0.0, 0.4, 2).astype(np.float32)
         single_step = single_fast.step(single_action)
         same_steps(single_step, single_checked.step(single_action))

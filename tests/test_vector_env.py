@@ -157,7 +157,8 @@ def test_same_step_autoreset_matches_sync_vector_env(env_id):
     final observations and infos equal gymnasium's SyncVectorEnv in the same mode, step by step."""
     k, steps, mode = 5, 1_200, gymnasium.vector.AutoresetMode.SAME_STEP
     native = gymnasium.make_vec(env_id, num_envs=k, autoreset_mode=mode)
-    reference = gymnasium.make_vec(env_id, num_envs=k, vectorization_mode="sync", vector_kwargs={"autoreset_mode": mode})
+    reference = gymnasium.make_vec(env_id, num_envs=k, vectorization_mode="sync",
+                                   vector_kwargs={"autoreset_mode": mode})
     assert isinstance(native.unwrapped, LavaBridgeVectorEnv) and native.metadata["autoreset_mode"] == mode
     rng = np.random.default_rng(0)
     np.testing.assert_array_equal(native.reset(seed=11)[0], reference.reset(seed=11)[0])
