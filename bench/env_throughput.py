@@ -19,6 +19,14 @@ Then vector envs at K = 1, 8, 32 sub-envs, the same total number of env steps:
 Target: (e) at K = 32 >= 0.5 x (d), i.e. an env step inside the vector env costs at most twice
 the raw C-looped physics of one env.
 
+Last, before and after the free-motion path, side by side: the same loops with the task checking
+every physics step (`task.skip_free_contacts = False`, the path every step took before) and with the
+default (an env step that `free_motion` shows can meet nothing runs in C without collision
+detection), alternated repeat by repeat, for the single env and the native vector env at K = 25.
+
+Times are this process's CPU time (`time.process_time`), so that other programs on a shared machine
+do not count; on an idle machine it equals the wall time of these single-threaded loops.
+
     python bench/env_throughput.py            # 50k env steps per loop, best of 3
     python bench/env_throughput.py --quick    # a few hundred steps: a smoke test for CI
 """
@@ -76,13 +84,43 @@ def run_vector(envs, actions: np.ndarray) -> None:
 
 
 def best_rate(run, n_steps: int, repeats: int) -> float:
-    """Best-of-`repeats` env steps per second of `run()`, which performs n_steps env steps."""
+    """Best-of-`repeats` env steps per CPU second of `run()`, which performs n_steps env steps."""
     best = float("inf")
     for _ in range(repeats):
-        start = time.perf_counter()
+        start = time.process_time()
         run()
-        best = min(best, time.perf_counter() - start)
+        best = min(best, time.process_time() - start)
     return n_steps / best
+
+
+def set_checked(env, checked: bool) -> None:
+    """Make `env` (single or vector) check every physics step (the path before free motion) or not."""
+    env.unwrapped.task.skip_free_contacts = not checked
+
+
+def before_after(cases: dict, repeats: int) -> dict[str, tuple[float, float]]:
+    """(checked, free-motion) env steps per CPU second of each case (env, run, n_steps), the two paths
+    alternated repeat by repeat so that both see the same machine."""
+    best = {name: [float("inf"), float("inf")] for name in cases}
+    for _ in range(repeats):
+        for name, (env, run, n_steps) in cases.items():
+            for index, checked in enumerate((True, False)):
+                set_checked(env, checked)
+                start = time.process_time()
+                run()
+                best[name][index] = min(best[name][index], time.process_time() - start)
+            set_checked(env, False)
+    return {name: (cases[name][2] / old, cases[name][2] / new) for name, (old, new) in best.items()}
+
+
+def free_share(envs, batches: np.ndarray) -> float:
+    """Share of sub-env steps that take the free-motion path under `batches` of actions (untimed)."""
+    task, free = envs.unwrapped.task, 0
+    envs.reset(seed=0)
+    for batch in batches:
+        free += sum(task.free_motion(data) for data in envs.unwrapped.datas)
+        envs.step(batch)
+    return free / batches.shape[0] / batches.shape[1]
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -153,6 +191,23 @@ def main(argv: list[str] | None = None) -> None:
         print(f"{name:<34} {rate:>12,.0f} {1e6 / rate:>12.1f} {rate / d:>8.3f}")
     native32, sync32 = vector_rates["(e) make_vec native, K=32"], vector_rates["(f) SyncVectorEnv, K=32"]
     print(f"native / SyncVectorEnv at K=32: {native32 / sync32:.2f}x")
+
+    k = 25
+    batches = rng.uniform(-1, 1, size=(max(1, n // k), k, 2)).astype(np.float32)
+    single, vector = gymnasium.make("LavaBridge-v0").unwrapped, gymnasium.make_vec("LavaBridge-v0", num_envs=k)
+    single.reset(seed=args.seed)
+    vector.reset(seed=args.seed)
+    compared = before_after({
+        "env.unwrapped.step": (single, lambda: run_unwrapped(single, actions), n),
+        f"make_vec native, K={k}": (vector, lambda: run_vector(vector, batches), batches.shape[0] * k),
+    }, args.repeats)
+    print(f"\nbefore / after the free-motion path (same actions, alternated; {free_share(vector, batches):.0%} of "
+          f"the K={k} sub-env steps took it)")
+    print(f"{'loop':<34} {'checked steps/s':>16} {'free-motion steps/s':>20} {'after / before':>15}")
+    for name, (old, new) in compared.items():
+        print(f"{name:<34} {old:>16,.0f} {new:>20,.0f} {new / old:>15.2f}")
+    print(f"{'(d) mj_step(nstep=10), for scale':<34} {d:>16,.0f}")
+    vector.close()
 
     met = a / c >= TARGET_RATIO
     print(f"\ntarget (a)/(c) >= {TARGET_RATIO} (gymnasium layer costs at most 2x the raw mj_step loop): "

@@ -17,6 +17,7 @@ physics and the rules.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import mujoco
@@ -30,6 +31,10 @@ from lava_bridge_mj.starts import START_NAMES, start_distribution
 
 LAVA, GOAL = 1, 2
 """What a contact with a geom means (0: nothing, e.g. a wall)."""
+FREE_MOTION_SKIPS = mujoco.mjtDisableBit.mjDSBL_CONTACT | mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+"""MuJoCo stages an env step in free motion skips: collision detection and the (then empty) constraint solver."""
+CLEARANCE_SLACK = 1e-3
+"""Metres added to every distance of the free-motion test, far above its rounding errors."""
 
 
 class LavaBridgeTask:
@@ -42,7 +47,12 @@ class LavaBridgeTask:
 
     Attributes: `layout`, `model` (the compiled MjModel), `frame_skip` (physics steps per env step),
     `dt` (seconds per env step), the three rewards, `start_distributions` (name -> distribution),
-    `observation_space` and `action_space` (one env's).
+    `observation_space` and `action_space` (one env's), `skip_free_contacts` (True: `step` runs an
+    env step in which `free_motion` rules out every contact without collision detection, the same
+    numbers faster; False: every physics step is checked, the reference for tests and benchmarks).
+    The free-motion bounds are read from the model when the task is made: after changing the model's
+    physics (damping, gear, timestep, geoms), set `skip_free_contacts = False`. Forces applied from
+    outside (`data.qfrc_applied`, `data.xfrc_applied`) are outside the bounds too.
     """
 
     def __init__(self, layout: Layout, *, goal_reward: float = 1.0, lava_reward: float = 0.0,
@@ -65,6 +75,8 @@ class LavaBridgeTask:
         self._touch_event[[geom_id(n) for n in layout.lava_pits]] = LAVA
         self._touch_event[geom_id("goal")] = GOAL
         self.start_distributions = {name: start_distribution(layout, name) for name in START_NAMES}
+        self._free_motion_bounds()
+        self.skip_free_contacts = True
 
         hx, hy = layout.half_extent
         # Each axis's speed stays below gear / damping: the force's terminal velocity.
@@ -84,6 +96,75 @@ class LavaBridgeTask:
 
     def _touch_events(self, data: mujoco.MjData) -> np.ndarray:
         return self._touch_event[data.contact.geom].ravel() if data.ncon else self._touch_event[:0]
+
+    # --- free motion ---------------------------------------------------------------------------
+    def _free_motion_bounds(self) -> None:
+        """What `free_motion` needs, from the compiled model: each axis's reach in one env step as
+        `reach_base + reach_per_speed * |v|`, and every geom the ball can touch as an axis-aligned
+        rectangle grown by the ball's radius, the contact margin and gap. A model outside what the
+        bound covers (another integrator, springs, friction loss, limits, equality constraints, joints
+        other than slides along x and y, a geom that moves, fluid forces) gets one rectangle that covers
+        every position: every step then takes the checked path."""
+        model, probe = self.model, self._probe
+        mujoco.mj_resetData(model, probe)
+        mujoco.mj_fwdPosition(model, probe)
+        ball = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "ball")
+        touches = ((model.geom_contype[ball] & model.geom_conaffinity)
+                   | (model.geom_contype & model.geom_conaffinity[ball])) != 0
+        touches[ball] = False
+        obstacles = np.flatnonzero(touches)
+        # rectangles of the geoms' world bounding boxes: |R| half-sizes about the box's world centre
+        lo, hi = [], []
+        for g in obstacles:
+            rotation = probe.geom_xmat[g].reshape(3, 3)
+            centre = probe.geom_xpos[g] + rotation @ model.geom_aabb[g, :3]
+            half = np.abs(rotation) @ model.geom_aabb[g, 3:]
+            grow = model.geom_rbound[ball] + model.geom_margin[[g, ball]].max() + model.geom_gap[[g, ball]].max()
+            lo.append(centre[:2] - half[:2] - grow - CLEARANCE_SLACK)
+            hi.append(centre[:2] + half[:2] + grow + CLEARANCE_SLACK)
+        self._obstacles = [(*map(float, low), *map(float, high)) for low, high in zip(lo, hi)]
+        # one axis under implicit-damping Euler: v' = (m v + h f) / (m + h c), x' = x + h v', |f| <= gear;
+        # so |v_k| <= a_k |v_0| + b_k, and the reach over n steps is h * sum(b_k) + h * sum(a_k) |v_0|
+        h, n = model.opt.timestep, self.frame_skip
+        mass = model.body_mass[model.geom_bodyid[ball]] + model.dof_armature
+        force = np.abs(model.actuator_gear[:, 0]) * np.abs(model.actuator_ctrlrange).max(axis=1)
+        a, b = np.ones(2), np.zeros(2)
+        reach_base, reach_per_speed = np.zeros(2), np.zeros(2)
+        for _ in range(n):
+            a, b = mass * a / (mass + h * model.dof_damping), (mass * b + h * force) / (mass + h * model.dof_damping)
+            reach_base += h * b
+            reach_per_speed += h * a
+        self._reach = ((reach_base + CLEARANCE_SLACK).tolist(), reach_per_speed.tolist())
+        disabled = mujoco.mjtDisableBit
+        covered = (model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
+                   and not model.opt.disableflags & (disabled.mjDSBL_EULERDAMP | disabled.mjDSBL_CLAMPCTRL)
+                   and model.nv == 2 and model.nu == 2 and list(model.actuator_trnid[:, 0]) == [0, 1]
+                   and (model.jnt_type == mujoco.mjtJoint.mjJNT_SLIDE).all()
+                   and np.array_equal(model.jnt_axis, [[1, 0, 0], [0, 1, 0]])
+                   and not model.jnt_stiffness.any() and not model.dof_frictionloss.any()
+                   and not model.jnt_limited.any() and model.neq == 0
+                   and model.opt.density == 0 and model.opt.viscosity == 0
+                   and (model.geom_bodyid[obstacles] == 0).all() and model.actuator_ctrllimited.all())
+        if not covered:
+            self._obstacles = [(-math.inf, -math.inf, math.inf, math.inf)]
+
+    def free_motion(self, data: mujoco.MjData) -> bool:
+        """True when, whatever the action, no contact (wall, lava or goal) can exist at any physics step
+        of `data`'s coming env step.
+
+        The ball moves freely there (its force and linear damping), so its reach along each axis in
+        frame_skip physics steps is bounded from its speed now; free_motion is True when that reach
+        keeps its centre off every geom's rectangle grown by the ball's radius and the contact margin
+        and gap. Plain Python floats: for one ball, several times cheaper than numpy's array calls.
+        """
+        x, y = data.qpos.tolist()
+        vx, vy = data.qvel.tolist()
+        (base_x, base_y), (per_x, per_y) = self._reach
+        reach_x, reach_y = base_x + per_x * abs(vx), base_y + per_y * abs(vy)
+        for low_x, low_y, high_x, high_y in self._obstacles:
+            if x - reach_x < high_x and x + reach_x > low_x and y - reach_y < high_y and y + reach_y > low_y:
+                return False
+        return True
 
     # --- states --------------------------------------------------------------------------------
     def check_state(self, qpos: Any, qvel: Any = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
@@ -138,6 +219,12 @@ class LavaBridgeTask:
         """The observation (x, y, vx, vy) of `data`: its whole physics state, a copy."""
         return np.concatenate([data.qpos, data.qvel])
 
+    @staticmethod
+    def observations(datas: Sequence[mujoco.MjData]) -> np.ndarray:
+        """The observations (K, 4) of K MjData, row i `observation(datas[i])`. Gathered as Python
+        floats: half the time of stacking K small arrays, the same float64 values."""
+        return np.array([data.qpos.tolist() + data.qvel.tolist() for data in datas])
+
     # --- dynamics ------------------------------------------------------------------------------
     @staticmethod
     def check_action(action: Any) -> np.ndarray:
@@ -156,9 +243,26 @@ class LavaBridgeTask:
 
         Returns (reward, lava, success). It stops at the first physics step whose contacts touch lava
         (lava) or the goal (success); either ends the episode.
+
+        Where `free_motion` holds (and `skip_free_contacts`), the physics steps loop in C without
+        collision detection and constraint solver, which would have found nothing: the numbers are
+        those of the checked loop bit for bit (tests/test_task_physics.py compares the two).
         """
         model = self.model
         data.ctrl[:] = action  # MuJoCo clips to the actuators' ctrlrange [-1, 1]
+        if self.skip_free_contacts and self.free_motion(data):
+            # no contact can occur: then contacts are computed once, for the state reached, as the
+            # checked loop leaves them
+            flags = model.opt.disableflags
+            model.opt.disableflags = flags | FREE_MOTION_SKIPS
+            try:
+                mujoco.mj_step2(model, data)
+                if self.frame_skip > 1:
+                    mujoco.mj_step(model, data, nstep=self.frame_skip - 1)
+            finally:
+                model.opt.disableflags = flags
+            mujoco.mj_step1(model, data)
+            return self.step_reward, False, False
         lava = success = False
         # mj_step split in two so contacts are current for the state just reached: lava and the
         # goal are checked after every physics step, so a fast ball cannot cross a corner unseen.

@@ -4,7 +4,13 @@
 It behaves exactly like `gymnasium.vector.SyncVectorEnv` over K `gymnasium.make("LavaBridge-v0")`
 envs (tests/test_vector_env.py checks step by step): sub-env i is seeded with `seed + i`, episodes
 truncate at `max_episode_steps`, and the autoreset is gymnasium's default, next-step: the step after an
-episode ends resets that sub-env (from p0) and returns its first observation with reward 0. It saves
+episode ends resets that sub-env (from p0) and returns its first observation with reward 0. With
+`autoreset_mode=AutoresetMode.SAME_STEP` a sub-env is reset (from p0) in the step that ends its episode,
+as SyncVectorEnv does in that mode: the step returns the new episode's first observation, and the
+ended episode's last observation and info in `info["final_obs"]` and `info["final_info"]`. Pass the
+mode as a keyword: `gymnasium.make_vec("LavaBridge-v0", num_envs=K, autoreset_mode=AutoresetMode.SAME_STEP)`
+(gymnasium's `make_vec` gives `vector_kwargs` to its own vector envs only, and refuses them for every
+env's `vector_entry_point`). It saves
 what the generic wrapper pays for: K compiled models, K wrapper stacks, per-env info dictionaries.
 Each sub-env's MjData is stepped, reset and observed by `task`, the same `LavaBridgeTask` that a
 single env drives its one MjData with.
@@ -39,14 +45,19 @@ class LavaBridgeVectorEnv(VectorEnv):
     Args:
         num_envs: K.
         max_episode_steps: the time limit (500, the paper's horizon).
+        autoreset_mode: `AutoresetMode.NEXT_STEP` (the default) or `AutoresetMode.SAME_STEP` (or their
+            values, "NextStep" and "SameStep").
         **env_kwargs: LavaBridgeEnv's arguments (rewards, Layout fields), shared by every sub-env.
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, num_envs: int = 1, max_episode_steps: int = MAX_EPISODE_STEPS, **env_kwargs: Any):
+    def __init__(self, num_envs: int = 1, max_episode_steps: int = MAX_EPISODE_STEPS,
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **env_kwargs: Any):
         self.num_envs = check_integer("num_envs", num_envs, 1)
         self.max_episode_steps = check_integer("max_episode_steps", max_episode_steps, 1)
+        self.autoreset_mode = check_autoreset_mode(autoreset_mode)
+        self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
         if "render_mode" in env_kwargs and env_kwargs["render_mode"] is not None:
             raise ValueError("LavaBridgeVectorEnv does not render; render a single LavaBridgeEnv instead")
         env_kwargs.pop("render_mode", None)
@@ -87,8 +98,25 @@ class LavaBridgeVectorEnv(VectorEnv):
             self.episode_steps[i] += 1
         terminated = lava | success
         truncated = ~terminated & ~self.autoreset & (self.episode_steps >= self.max_episode_steps)
-        self.autoreset = terminated | truncated
-        return self._observations(), rewards, terminated, truncated, self._info(success, lava)
+        ended = terminated | truncated
+        if self.autoreset_mode == AutoresetMode.NEXT_STEP:
+            self.autoreset = ended
+            return self._observations(), rewards, terminated, truncated, self._info(success, lava)
+        # same step: the ended episodes' last observations and infos go to final_obs / final_info, as
+        # SyncVectorEnv puts them (object array and presence masks), and their sub-envs start again
+        info = {}
+        if ended.any():
+            last = self._observations()
+            final_obs = np.full(self.num_envs, None, dtype=object)
+            for i in np.flatnonzero(ended):
+                final_obs[i] = last[i]
+                self._reset_one(i, "p0")
+            final_info = {"is_success": success & ended, "_is_success": ended.copy(), "lava": lava & ended,
+                          "_lava": ended.copy()}
+            info = {"final_obs": final_obs, "_final_obs": ended.copy(), "final_info": final_info,
+                    "_final_info": ended.copy()}
+            success, lava = success & ~ended, lava & ~ended  # a new episode's info, as its reset gives
+        return self._observations(), rewards, terminated, truncated, {**info, **self._info(success, lava)}
 
     # --- pieces ---------------------------------------------------------------------------------
     def _reset_one(self, i: int, start: str | tuple[np.ndarray, np.ndarray]) -> None:
@@ -130,8 +158,7 @@ class LavaBridgeVectorEnv(VectorEnv):
         return [None if s is None else check_integer("seed", s, 0) for s in seed]
 
     def _observations(self) -> np.ndarray:
-        observation = self.task.observation
-        return np.stack([observation(d) for d in self.datas])
+        return self.task.observations(self.datas)
 
     def _info(self, success: np.ndarray, lava: np.ndarray) -> dict[str, np.ndarray]:
         every = np.ones(self.num_envs, dtype=bool)  # gymnasium's vector info: a value and a presence mask
@@ -140,3 +167,16 @@ class LavaBridgeVectorEnv(VectorEnv):
     def get_state(self) -> np.ndarray:
         """The physics states (K, 4): identical to the observations."""
         return self._observations()
+
+
+def check_autoreset_mode(mode: Any) -> AutoresetMode:
+    """`mode` as an AutoresetMode the vector env runs (next step or same step); ValueError naming it otherwise."""
+    supported = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
+    try:
+        checked = AutoresetMode(mode)
+    except ValueError:
+        checked = None
+    if checked not in supported:
+        raise ValueError(f"autoreset_mode must be one of {[m.value for m in supported]} (gymnasium.vector."
+                         f"AutoresetMode), got {mode!r}")
+    return checked

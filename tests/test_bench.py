@@ -10,7 +10,8 @@ BENCH = Path(__file__).resolve().parent.parent / "bench"
 
 
 @pytest.mark.parametrize("argv, expected", [
-    (["env_throughput.py", "--quick"], "mj_step"),
+    (["env_throughput.py", "--quick"], "free-motion steps/s"),
+    (["profile_training.py", "--quick"], "update: critics"),
     (["sac_throughput.py", "--quick"], "ours K=2"),
     (["single_seed_speed.py", "--quick"], "ratio this tree / 5eff605"),
     (["sweep_scaling.py", "--quick"], "local, 2 workers"),  # about 45 s, most of it process and Ray start-up

@@ -10,6 +10,7 @@ import pytest
 
 import lava_bridge_mj
 from lava_bridge_mj import ENV_ID, TASKS, LavaBridgeTask, LavaBridgeVectorEnv, Layout
+from lava_bridge_mj.expert import ScriptedExpert
 
 PACKAGE = Path(lava_bridge_mj.__file__).parent
 
@@ -100,3 +101,87 @@ def test_no_module_of_the_env_calls_private_methods_of_another_object():
     offenders = {path.name: calls for path in sorted(PACKAGE.glob("*.py"))
                  if (calls := private_calls_on_other_objects(ast.parse(path.read_text())))}
     assert offenders == {}
+
+
+def same_steps(a, b):
+    for x, y, name in zip(a, b, ("obs", "reward", "terminated", "truncated")):
+        np.testing.assert_array_equal(x, y, err_msg=name)
+    for key in ("is_success", "lava"):
+        np.testing.assert_array_equal(a[4][key], b[4][key], err_msg=key)
+
+
+@pytest.mark.parametrize("env_id", list(TASKS))
+def test_free_motion_steps_equal_the_checked_loop_bit_for_bit(env_id):
+    """The vector env and the single env with free-motion steps (the default) against the same envs
+    checking every physics step, under the same seeded actions: an expert with noise (goal reaches and
+    lava deaths on the bridge) and uniform random actions (walls, truncations), with their resets."""
+    k, horizon = 6, 400
+    fast, checked = (LavaBridgeVectorEnv(k, max_episode_steps=horizon, layout=TASKS[env_id]) for _ in range(2))
+    single_fast, single_checked = (gymnasium.make(env_id, max_episode_steps=horizon) for _ in range(2))
+    checked.task.skip_free_contacts = single_checked.unwrapped.task.skip_free_contacts = False
+    expert = ScriptedExpert(single_fast)
+    rng = np.random.default_rng(0)
+    obs, _ = fast.reset(seed=3)
+    np.testing.assert_array_equal(obs, checked.reset(seed=3)[0])
+    single_obs, _ = single_fast.reset(seed=3)
+    np.testing.assert_array_equal(single_obs, single_checked.reset(seed=3)[0])
+    follows_expert = (np.arange(k) < 3)[:, None]
+    free = success = lava = truncated = 0
+    for _ in range(900):
+        noisy_expert = np.array([expert.act(o) for o in obs]) + rng.normal(0.0, 0.15, (k, 2))
+        actions = np.where(follows_expert, noisy_expert, rng.uniform(-1, 1, (k, 2))).astype(np.float32)
+        free += sum(fast.task.free_motion(data) for data in fast.datas)
+        step = fast.step(actions)
+        same_steps(step, checked.step(actions))
+        obs = step[0]
+        success += step[4]["is_success"].sum()
+        lava += step[4]["lava"].sum()
+        truncated += step[3].sum()
+        single_action = expert.act(single_obs) + rng.normal(0.0, 0.4, 2).astype(np.float32)
+        single_step = single_fast.step(single_action)
+        same_steps(single_step, single_checked.step(single_action))
+        single_obs = single_step[0]
+        if single_step[2] or single_step[3]:
+            start = "ood" if rng.random() < 0.5 else "p0"
+            single_obs, _ = single_fast.reset(options={"start": start})
+            np.testing.assert_array_equal(single_obs, single_checked.reset(options={"start": start})[0])
+    assert success and lava and truncated, (success, lava, truncated)  # every ending was compared
+    assert 0 < free < 900 * k, free  # both paths ran
+
+
+@pytest.mark.parametrize("env_id", ["LavaBridge-v0", "LavaBridgeLowDamping-v0", "LavaBridgeBend-v0"])
+def test_free_motion_is_only_claimed_where_no_contact_can_occur(env_id):
+    """From random states (any position, speeds up to the top speed) that free_motion accepts, the
+    strongest pushes in eight directions find no contact at any physics step of the checked loop."""
+    task = LavaBridgeTask(TASKS[env_id])
+    task.skip_free_contacts = False
+    data = mujoco.MjData(task.model)
+    rng = np.random.default_rng(1)
+    hx, hy = task.layout.half_extent
+    v = task.layout.top_speed
+    pushes = [np.array([dx, dy], dtype=np.float32) for dx in (-1, 0, 1) for dy in (-1, 0, 1) if dx or dy]
+    accepted = refused = 0
+    for _ in range(400):
+        state = rng.uniform([-hx, -hy, -v, -v], [hx, hy, v, v])
+        task.set_state(data, state[:2], state[2:])
+        if not task.free_motion(data):
+            refused += 1
+            continue
+        accepted += 1
+        push = pushes[rng.integers(len(pushes))]
+        data.ctrl[:] = push
+        for _ in range(task.frame_skip):
+            mujoco.mj_step2(task.model, data)
+            mujoco.mj_step1(task.model, data)
+            assert data.ncon == 0, (state, push)
+    assert accepted and refused, (accepted, refused)
+
+
+def test_observations_of_several_datas_are_their_observations():
+    task = LavaBridgeTask(Layout())
+    datas = [mujoco.MjData(task.model) for _ in range(3)]
+    for data, x in zip(datas, (-4.0, -3.0, 4.0)):
+        task.set_state(data, np.array([x, 0.1 / 3]), np.array([0.7, -1 / 3]))
+    observations = task.observations(datas)
+    assert observations.shape == (3, 4) and observations.dtype == np.float64
+    np.testing.assert_array_equal(observations, np.stack([task.observation(d) for d in datas]))

@@ -149,3 +149,39 @@ def test_rows_of_sub_envs_not_reset_are_ignored():
     before, _ = envs.reset(seed=0)
     obs, _ = envs.reset(options={"state": [[-4.5, 0.0, 0.0, 0.0], [np.nan] * 4], "reset_mask": np.array([True, False])})
     np.testing.assert_array_equal(obs, [[-4.5, 0.0, 0.0, 0.0], before[1]])
+
+
+@pytest.mark.parametrize("env_id", [ENV_ID, "LavaBridgeNarrow-v0"])
+def test_same_step_autoreset_matches_sync_vector_env(env_id):
+    """SAME_STEP, through make_vec's keyword: observations, rewards, ends, infos and the ended episodes'
+    final observations and infos equal gymnasium's SyncVectorEnv in the same mode, step by step."""
+    k, steps, mode = 5, 1_200, gymnasium.vector.AutoresetMode.SAME_STEP
+    native = gymnasium.make_vec(env_id, num_envs=k, autoreset_mode=mode)
+    reference = gymnasium.make_vec(env_id, num_envs=k, vectorization_mode="sync",
+                                   vector_kwargs={"autoreset_mode": mode})
+    assert isinstance(native.unwrapped, LavaBridgeVectorEnv) and native.metadata["autoreset_mode"] == mode
+    rng = np.random.default_rng(0)
+    np.testing.assert_array_equal(native.reset(seed=11)[0], reference.reset(seed=11)[0])
+    ended = {"terminated": 0, "truncated": 0}
+    for _ in range(steps):
+        actions = rng.uniform(-1, 1, (k, 2)).astype(np.float32)
+        a, b = native.step(actions), reference.step(actions)
+        assert_same_step(a, b)
+        assert ("final_obs" in a[4]) == ("final_obs" in b[4])
+        if "final_obs" in b[4]:
+            np.testing.assert_array_equal(a[4]["_final_obs"], b[4]["_final_obs"])
+            np.testing.assert_array_equal(a[4]["_final_info"], b[4]["_final_info"])
+            for i in np.flatnonzero(b[4]["_final_obs"]):
+                np.testing.assert_array_equal(a[4]["final_obs"][i], b[4]["final_obs"][i])
+                for key in ("is_success", "lava"):
+                    assert a[4]["final_info"][key][i] == b[4]["final_info"][key][i]
+                    assert a[4]["final_info"]["_" + key][i] == b[4]["final_info"]["_" + key][i]
+        ended["terminated"] += a[2].sum()
+        ended["truncated"] += a[3].sum()
+    assert ended["terminated"] > 0 and ended["truncated"] > 0, ended
+
+
+@pytest.mark.parametrize("mode", ["Disabled", "sameStep", 3])
+def test_unsupported_autoreset_modes_are_refused_naming_them(mode):
+    with pytest.raises(ValueError, match=rf"autoreset_mode must be one of \['NextStep', 'SameStep'\].*got {mode!r}"):
+        LavaBridgeVectorEnv(2, autoreset_mode=mode)
