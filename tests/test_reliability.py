@@ -1,12 +1,16 @@
 """Nothing lost on interruption, bad input refused: real processes killed and resumed.
 
 Every run here is a `python -m lava_bridge_mj.eval.cli` child process with a tiny configuration, so
-killed, signalled and resumed runs are compared with an uninterrupted run made the same way.
+killed, signalled and resumed runs are compared with an uninterrupted run made the same way; that run
+is made once (`reference_run`) and tests that damage a finished run work on a copy of it. Bad
+configuration files are refused before training starts, so they are checked through `cli.main` in
+this process.
 """
 
 import csv
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -15,6 +19,8 @@ import time
 import numpy as np
 import pytest
 import torch
+
+from lava_bridge_mj.eval import cli
 
 TINY = {"steps": 1500, "eval_every": 250, "eval_episodes": 2, "demo_subset": 20,
         "sac": {"hidden_sizes": [16, 16], "batch_size": 32, "buffer_size": 500, "learning_starts": 100}}
@@ -41,12 +47,22 @@ def metrics(out):
 
 
 @pytest.fixture(scope="module")
-def reference(config_file, tmp_path_factory):
+def reference_run(config_file, tmp_path_factory):
+    """The uninterrupted run of the tiny configuration: tests only read it, or copy it (`copy_of`)."""
     out = tmp_path_factory.mktemp("reference") / "run"
     subprocess.run(command(config_file, out), check=True, capture_output=True)
-    rows = metrics(out)
+    return out
+
+
+@pytest.fixture(scope="module")
+def reference(reference_run):
+    rows = metrics(reference_run)
     assert [int(r["step"]) for r in rows] == list(range(250, 1501, 250))
     return rows
+
+
+def copy_of(run, tmp_path):
+    return shutil.copytree(run, tmp_path / "run", ignore=shutil.ignore_patterns(".lock"))
 
 
 def checkpoint_mtime(out):
@@ -141,14 +157,16 @@ def test_a_second_process_cannot_write_a_run_directory_in_use(config_file, tmp_p
     ('{"demo_subset": 0}', "demo_subset must be an integer >= 1"),
     ('{"hybrid_fraction": 1.5}', "hybrid_fraction must be a number in [0, 1], got 1.5"),
 ])
-def test_bad_config_files_are_refused_without_writing(tmp_path, content, message):
+def test_bad_config_files_are_refused_without_writing(tmp_path, capsys, content, message):
     config = tmp_path / "bad.json"
     config.write_text(content)
     out = tmp_path / "run"
-    result = subprocess.run(command(config, out), capture_output=True, text=True)
-    assert result.returncode == 2
-    assert message in result.stderr
-    assert "Traceback" not in result.stderr
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(command(config, out)[3:])  # the child's arguments, after `python -m lava_bridge_mj.eval.cli`
+    assert exit_.value.code == 2
+    stderr = capsys.readouterr().err
+    assert message in stderr
+    assert "Traceback" not in stderr
     assert not out.exists()
 
 
@@ -170,9 +188,8 @@ def test_a_corrupt_checkpoint_falls_back_and_two_are_refused_keeping_earlier_res
     assert (out / "metrics.csv").read_text() == kept
 
 
-def test_a_checkpoint_of_an_older_format_is_refused_by_version(config_file, reference, tmp_path):
-    out = tmp_path / "run"
-    subprocess.run(command(config_file, out), check=True, capture_output=True)
+def test_a_checkpoint_of_an_older_format_is_refused_by_version(config_file, reference_run, tmp_path):
+    out = copy_of(reference_run, tmp_path)
     for name in ("checkpoint.pt", "checkpoint.prev.pt"):
         state = torch.load(out / name, weights_only=False)
         torch.save({**state, "version": 2}, out / name)
@@ -183,9 +200,8 @@ def test_a_checkpoint_of_an_older_format_is_refused_by_version(config_file, refe
     assert (out / "metrics.csv").read_text() == kept
 
 
-def test_resume_with_another_configuration_is_refused(config_file, tmp_path):
-    out = tmp_path / "run"
-    subprocess.run(command(config_file, out), check=True, capture_output=True)
+def test_resume_with_another_configuration_is_refused(config_file, reference_run, tmp_path):
+    out = copy_of(reference_run, tmp_path)
     kept = (out / "metrics.csv").read_text()
     result = subprocess.run([*command(config_file, out, "--resume"), "--seed", "7"], capture_output=True, text=True)
     assert result.returncode == 2
