@@ -2,9 +2,10 @@
 
 Every run here is a `python -m lava_bridge_mj.eval.cli` child process with a tiny configuration, so
 killed, signalled and resumed runs are compared with an uninterrupted run made the same way; that run
-is made once (`reference_run`) and tests that damage a finished run work on a copy of it. Bad
-configuration files are refused before training starts, so they are checked through `cli.main` in
-this process.
+is made once (`reference_run`) and tests that damage a finished run work on a copy of it. Commands
+refused before training starts (bad configuration files, a resume refused for its checkpoint's format
+or its configuration) take the child's code path through `cli.main` in this process, without a
+child's torch start-up.
 """
 
 import csv
@@ -36,9 +37,20 @@ def config_file(tmp_path_factory):
     return path
 
 
+def arguments(config_file, out, *extra):
+    return ["--method", "auxss", "--config", str(config_file), "--out", str(out), "--no-progress", *extra]
+
+
 def command(config_file, out, *extra):
-    return [sys.executable, "-m", "lava_bridge_mj.eval.cli", "--method", "auxss", "--config", str(config_file),
-            "--out", str(out), "--no-progress", *extra]
+    return [sys.executable, "-m", "lava_bridge_mj.eval.cli", *arguments(config_file, out, *extra)]
+
+
+def exit_code_in_process(argv):
+    """The exit code of `python -m lava_bridge_mj.eval.cli ARGV`, for a command refused before training."""
+    try:
+        return cli.main(argv)
+    except SystemExit as exit_:  # argparse's usage errors
+        return exit_.code
 
 
 def metrics(out):
@@ -161,9 +173,7 @@ def test_bad_config_files_are_refused_without_writing(tmp_path, capsys, content,
     config = tmp_path / "bad.json"
     config.write_text(content)
     out = tmp_path / "run"
-    with pytest.raises(SystemExit) as exit_:
-        cli.main(command(config, out)[3:])  # the child's arguments, after `python -m lava_bridge_mj.eval.cli`
-    assert exit_.value.code == 2
+    assert exit_code_in_process(arguments(config, out)) == 2
     stderr = capsys.readouterr().err
     assert message in stderr
     assert "Traceback" not in stderr
@@ -182,30 +192,30 @@ def test_a_corrupt_checkpoint_falls_back_and_two_are_refused_keeping_earlier_res
         (out / name).write_bytes(b"not a checkpoint")
     kept = (out / "metrics.csv").read_text()
     result = subprocess.run(command(config_file, out, "--resume", "--steps", "1750"), capture_output=True, text=True)
-    assert result.returncode == 2
+    assert result.returncode == 2  # a real process: its whole stderr is this one line
     assert "every checkpoint of" in result.stderr and "Traceback" not in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
     assert (out / "metrics.csv").read_text() == kept
 
 
-def test_a_checkpoint_of_an_older_format_is_refused_by_version(config_file, reference_run, tmp_path):
+def test_a_checkpoint_of_an_older_format_is_refused_by_version(config_file, reference_run, tmp_path, capsys):
     out = copy_of(reference_run, tmp_path)
     for name in ("checkpoint.pt", "checkpoint.prev.pt"):
         state = torch.load(out / name, weights_only=False)
         torch.save({**state, "version": 2}, out / name)
     kept = (out / "metrics.csv").read_text()
-    result = subprocess.run(command(config_file, out, "--resume"), capture_output=True, text=True)
-    assert result.returncode == 2 and "Traceback" not in result.stderr
-    assert "format version 2" in result.stderr and "reads version 3" in result.stderr
+    assert exit_code_in_process(arguments(config_file, out, "--resume")) == 2
+    stderr = capsys.readouterr().err
+    assert "Traceback" not in stderr
+    assert "format version 2" in stderr and "reads version 3" in stderr
     assert (out / "metrics.csv").read_text() == kept
 
 
-def test_resume_with_another_configuration_is_refused(config_file, reference_run, tmp_path):
+def test_resume_with_another_configuration_is_refused(config_file, reference_run, tmp_path, capsys):
     out = copy_of(reference_run, tmp_path)
     kept = (out / "metrics.csv").read_text()
-    result = subprocess.run([*command(config_file, out, "--resume"), "--seed", "7"], capture_output=True, text=True)
-    assert result.returncode == 2
-    assert "another configuration" in result.stderr
+    assert exit_code_in_process([*arguments(config_file, out, "--resume"), "--seed", "7"]) == 2
+    assert "another configuration" in capsys.readouterr().err
     assert (out / "metrics.csv").read_text() == kept
 
 
