@@ -19,10 +19,12 @@ import subprocess  # noqa: E402
 import pytest  # noqa: E402
 
 
-@pytest.fixture
+@pytest.fixture(scope="session", autouse=True)
 def one_torch_thread():
-    """One torch thread, as the CLI's default: a seed's numbers are then independent of its batch.
-    The previous setting is restored so other tests are unaffected."""
+    """One torch thread for the whole session, as the CLI's default: a seed's numbers are then
+    independent of its batch, and in-process training of tiny networks is not slowed by intra-op
+    threads competing for a loaded 2-core machine. Tests whose assertions depend on it still name it.
+    The previous setting is restored at the end."""
     import torch
 
     threads = torch.get_num_threads()

@@ -1,12 +1,17 @@
 """Nothing lost on interruption, bad input refused: real processes killed and resumed.
 
 Every run here is a `python -m lava_bridge_mj.eval.cli` child process with a tiny configuration, so
-killed, signalled and resumed runs are compared with an uninterrupted run made the same way.
+killed, signalled and resumed runs are compared with an uninterrupted run made the same way; that run
+is made once (`reference_run`) and tests that damage a finished run work on a copy of it. Commands
+refused before training starts (bad configuration files, a resume refused for its checkpoint's format
+or its configuration) take the child's code path through `cli.main` in this process, without a
+child's torch start-up.
 """
 
 import csv
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -15,6 +20,8 @@ import time
 import numpy as np
 import pytest
 import torch
+
+from lava_bridge_mj.eval import cli
 
 TINY = {"steps": 1500, "eval_every": 250, "eval_episodes": 2, "demo_subset": 20,
         "sac": {"hidden_sizes": [16, 16], "batch_size": 32, "buffer_size": 500, "learning_starts": 100}}
@@ -30,9 +37,20 @@ def config_file(tmp_path_factory):
     return path
 
 
+def arguments(config_file, out, *extra):
+    return ["--method", "auxss", "--config", str(config_file), "--out", str(out), "--no-progress", *extra]
+
+
 def command(config_file, out, *extra):
-    return [sys.executable, "-m", "lava_bridge_mj.eval.cli", "--method", "auxss", "--config", str(config_file),
-            "--out", str(out), "--no-progress", *extra]
+    return [sys.executable, "-m", "lava_bridge_mj.eval.cli", *arguments(config_file, out, *extra)]
+
+
+def exit_code_in_process(argv):
+    """The exit code of `python -m lava_bridge_mj.eval.cli ARGV`, for a command refused before training."""
+    try:
+        return cli.main(argv)
+    except SystemExit as exit_:  # argparse's usage errors
+        return exit_.code
 
 
 def metrics(out):
@@ -41,12 +59,22 @@ def metrics(out):
 
 
 @pytest.fixture(scope="module")
-def reference(config_file, tmp_path_factory):
+def reference_run(config_file, tmp_path_factory):
+    """The uninterrupted run of the tiny configuration: tests only read it, or copy it (`copy_of`)."""
     out = tmp_path_factory.mktemp("reference") / "run"
     subprocess.run(command(config_file, out), check=True, capture_output=True)
-    rows = metrics(out)
+    return out
+
+
+@pytest.fixture(scope="module")
+def reference(reference_run):
+    rows = metrics(reference_run)
     assert [int(r["step"]) for r in rows] == list(range(250, 1501, 250))
     return rows
+
+
+def copy_of(run, tmp_path):
+    return shutil.copytree(run, tmp_path / "run", ignore=shutil.ignore_patterns(".lock"))
 
 
 def checkpoint_mtime(out):
@@ -141,14 +169,14 @@ def test_a_second_process_cannot_write_a_run_directory_in_use(config_file, tmp_p
     ('{"demo_subset": 0}', "demo_subset must be an integer >= 1"),
     ('{"hybrid_fraction": 1.5}', "hybrid_fraction must be a number in [0, 1], got 1.5"),
 ])
-def test_bad_config_files_are_refused_without_writing(tmp_path, content, message):
+def test_bad_config_files_are_refused_without_writing(tmp_path, capsys, content, message):
     config = tmp_path / "bad.json"
     config.write_text(content)
     out = tmp_path / "run"
-    result = subprocess.run(command(config, out), capture_output=True, text=True)
-    assert result.returncode == 2
-    assert message in result.stderr
-    assert "Traceback" not in result.stderr
+    assert exit_code_in_process(arguments(config, out)) == 2
+    stderr = capsys.readouterr().err
+    assert message in stderr
+    assert "Traceback" not in stderr
     assert not out.exists()
 
 
@@ -164,32 +192,30 @@ def test_a_corrupt_checkpoint_falls_back_and_two_are_refused_keeping_earlier_res
         (out / name).write_bytes(b"not a checkpoint")
     kept = (out / "metrics.csv").read_text()
     result = subprocess.run(command(config_file, out, "--resume", "--steps", "1750"), capture_output=True, text=True)
-    assert result.returncode == 2
+    assert result.returncode == 2  # a real process: its whole stderr is this one line
     assert "every checkpoint of" in result.stderr and "Traceback" not in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
     assert (out / "metrics.csv").read_text() == kept
 
 
-def test_a_checkpoint_of_an_older_format_is_refused_by_version(config_file, reference, tmp_path):
-    out = tmp_path / "run"
-    subprocess.run(command(config_file, out), check=True, capture_output=True)
+def test_a_checkpoint_of_an_older_format_is_refused_by_version(config_file, reference_run, tmp_path, capsys):
+    out = copy_of(reference_run, tmp_path)
     for name in ("checkpoint.pt", "checkpoint.prev.pt"):
         state = torch.load(out / name, weights_only=False)
         torch.save({**state, "version": 2}, out / name)
     kept = (out / "metrics.csv").read_text()
-    result = subprocess.run(command(config_file, out, "--resume"), capture_output=True, text=True)
-    assert result.returncode == 2 and "Traceback" not in result.stderr
-    assert "format version 2" in result.stderr and "reads version 3" in result.stderr
+    assert exit_code_in_process(arguments(config_file, out, "--resume")) == 2
+    stderr = capsys.readouterr().err
+    assert "Traceback" not in stderr
+    assert "format version 2" in stderr and "reads version 3" in stderr
     assert (out / "metrics.csv").read_text() == kept
 
 
-def test_resume_with_another_configuration_is_refused(config_file, tmp_path):
-    out = tmp_path / "run"
-    subprocess.run(command(config_file, out), check=True, capture_output=True)
+def test_resume_with_another_configuration_is_refused(config_file, reference_run, tmp_path, capsys):
+    out = copy_of(reference_run, tmp_path)
     kept = (out / "metrics.csv").read_text()
-    result = subprocess.run([*command(config_file, out, "--resume"), "--seed", "7"], capture_output=True, text=True)
-    assert result.returncode == 2
-    assert "another configuration" in result.stderr
+    assert exit_code_in_process([*arguments(config_file, out, "--resume"), "--seed", "7"]) == 2
+    assert "another configuration" in capsys.readouterr().err
     assert (out / "metrics.csv").read_text() == kept
 
 

@@ -37,10 +37,38 @@ def read_metrics(path):
         return list(csv.DictReader(f))
 
 
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """`trained(config)`: the directory and Run of `config` trained from scratch, once per module for
+    each configuration. Tests only read both; a test that changes a run directory copies it first
+    (`copy_run`)."""
+    runs = {}
+
+    def get(config):
+        key = json.dumps(config.to_dict(), sort_keys=True)
+        if key not in runs:
+            out = tmp_path_factory.mktemp("trained") / "run"
+            runs[key] = out, train(config, out, progress=False)
+        return runs[key]
+
+    return get
+
+
+@pytest.fixture(scope="module")
+def finished_run(trained):
+    """A tiny finished auxss run of 300 steps (both checkpoints present)."""
+    return trained(tiny_config(steps=300))[0]
+
+
+def copy_run(source, target):
+    shutil.copytree(source, target, ignore=shutil.ignore_patterns(".lock"))
+    return target
+
+
 @pytest.mark.parametrize("method", METHODS)
-def test_every_method_writes_a_complete_run_directory(tmp_path, method):
+def test_every_method_writes_a_complete_run_directory(trained, method):
     config = tiny_config(method, steps=300)
-    run = train(config, tmp_path, progress=False)
+    tmp_path, run = trained(config)
     rows = read_metrics(tmp_path / "metrics.csv")
     assert [int(r["step"]) for r in rows] == [100, 200, 300]
     assert list(rows[0]) == list(METRIC_FIELDS)
@@ -83,55 +111,52 @@ def test_the_episode_log_accounts_for_every_training_step_and_start(tmp_path, me
         np.testing.assert_array_equal(start, run.seed_runs[0].states[index, :2])
 
 
-def test_auxss_weights_move_during_training(tmp_path):
-    train(tiny_config("auxss", steps=300), tmp_path, progress=False)
-    probabilities = np.load(tmp_path / "start_weights.npz")["probabilities"]
+def test_auxss_weights_move_during_training(finished_run):
+    probabilities = np.load(finished_run / "start_weights.npz")["probabilities"]
     assert not np.allclose(probabilities[-1], probabilities[-1].mean()), "AuxSS never updated its weights"
 
 
-def test_same_seed_same_metrics(tmp_path):
-    config = tiny_config(steps=300)
-    train(config, tmp_path / "a", progress=False)
-    train(config, tmp_path / "b", progress=False)
-    assert metrics_without_wall_time(tmp_path / "a") == metrics_without_wall_time(tmp_path / "b")
+def test_same_seed_same_metrics(finished_run, tmp_path):
+    train(tiny_config(steps=300), tmp_path / "a", progress=False)  # finished_run's configuration
+    assert metrics_without_wall_time(tmp_path / "a") == metrics_without_wall_time(finished_run)
 
 
 @pytest.mark.parametrize("method", ["auxss", "hysac_auxss"])
-def test_resume_from_checkpoint_equals_uninterrupted_run(tmp_path, method):
+def test_resume_from_checkpoint_equals_uninterrupted_run(trained, tmp_path, method):
     config = tiny_config(method)
-    full = train(config, tmp_path / "full", progress=False)
-    checkpoint = torch.load(tmp_path / "full/checkpoint.prev.pt", weights_only=False)
+    full_dir, full = trained(config)
+    checkpoint = torch.load(full_dir / "checkpoint.prev.pt", weights_only=False)
     assert 0 < checkpoint["step"] < config.steps, "the test needs a checkpoint from the middle of the run"
     assert checkpoint["wrapper"]["episode_length"] > 0, "the test needs a checkpoint from the middle of an episode"
 
     # An interrupted run: only the files as they were at that checkpoint, plus a stale row past it.
     resumed_dir = tmp_path / "resumed"
-    interrupted_copy(tmp_path / "full", resumed_dir)
+    interrupted_copy(full_dir, resumed_dir)
     resumed = train(config, resumed_dir, resume=True, progress=False)
 
-    assert metrics_without_wall_time(resumed_dir) == metrics_without_wall_time(tmp_path / "full")
-    assert (resumed_dir / "episodes.csv").read_text() == (tmp_path / "full/episodes.csv").read_text()
+    assert metrics_without_wall_time(resumed_dir) == metrics_without_wall_time(full_dir)
+    assert (resumed_dir / "episodes.csv").read_text() == (full_dir / "episodes.csv").read_text()
     for name, tensor in full.agent.actor.state_dict().items():
         assert torch.equal(tensor, resumed.agent.actor.state_dict()[name]), name
     np.testing.assert_array_equal(full.strategy.weights, resumed.strategy.weights)
 
 
-def test_resume_refuses_a_checkpoint_of_another_configuration(tmp_path):
-    train(tiny_config(steps=300), tmp_path, progress=False)
+def test_resume_refuses_a_checkpoint_of_another_configuration(finished_run, tmp_path):
+    out = copy_run(finished_run, tmp_path / "run")
     with pytest.raises(ValueError, match="another configuration"):
-        train(tiny_config(steps=300, seed=4), tmp_path, resume=True, progress=False)
+        train(tiny_config(steps=300, seed=4), out, resume=True, progress=False)
 
 
 @pytest.mark.parametrize("method", ["auxss", "jsrl"])
-def test_a_finished_run_extended_to_more_steps_equals_one_trained_to_them(tmp_path, method):
+def test_a_finished_run_extended_to_more_steps_equals_one_trained_to_them(trained, tmp_path, method):
     # the 300k-step rows of a 100k-step protocol run come from extending it, not retraining
-    train(tiny_config(method, steps=300), tmp_path / "extended", progress=False)
+    copy_run(trained(tiny_config(method, steps=300))[0], tmp_path / "extended")
     short_rows = metrics_without_wall_time(tmp_path / "extended")
     extended = train(tiny_config(method, steps=700), tmp_path / "extended", resume=True, progress=False)
-    straight = train(tiny_config(method, steps=700), tmp_path / "straight", progress=False)
+    straight_dir, straight = trained(tiny_config(method, steps=700))
 
     rows = metrics_without_wall_time(tmp_path / "extended")
-    assert rows == metrics_without_wall_time(tmp_path / "straight")
+    assert rows == metrics_without_wall_time(straight_dir)
     assert rows[:len(short_rows)] == short_rows and len(rows) == 7
     for name, tensor in straight.agent.actor.state_dict().items():
         assert torch.equal(tensor, extended.agent.actor.state_dict()[name]), name
@@ -139,9 +164,9 @@ def test_a_finished_run_extended_to_more_steps_equals_one_trained_to_them(tmp_pa
     assert torch.load(tmp_path / "extended/final.pt", weights_only=False)["step"] == 700
 
 
-def test_provenance_records_each_training_session_with_the_strategy_settings(tmp_path):
+def test_provenance_records_each_training_session_with_the_strategy_settings(trained, tmp_path):
     config = tiny_config("goaldist_ss", steps=300)
-    train(config, tmp_path, progress=False)
+    tmp_path = copy_run(trained(config)[0], tmp_path / "run")
     first, = json.loads((tmp_path / "provenance.json").read_text())
     assert (first["from_step"], first["to_step"]) == (0, 300)
     goal = lava_bridge_mj.LavaBridgeEnv().layout.goal
@@ -196,8 +221,8 @@ def test_git_state_names_the_commit_of_a_tracked_file_and_nothing_for_an_untrack
     assert git_state(tmp_path / "tracked.py")["dirty"] is True
 
 
-def test_resume_refuses_to_shorten_a_run_and_changes_nothing(tmp_path):
-    train(tiny_config(steps=300), tmp_path, progress=False)
+def test_resume_refuses_to_shorten_a_run_and_changes_nothing(finished_run, tmp_path):
+    tmp_path = copy_run(finished_run, tmp_path / "run")
     before = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file() and p.name != ".lock"}
     with pytest.raises(ValueError, match=r"at step 300, past steps=200; a run continues to more steps, never fewer"):
         train(tiny_config(steps=200), tmp_path, resume=True, progress=False)
@@ -384,19 +409,6 @@ def test_hysac_offline_buffer_holds_every_demo_and_is_never_overwritten(tmp_path
 
 
 # --- run directories are never silently replaced; damaged checkpoints fall back -------------------------
-@pytest.fixture(scope="module")
-def finished_run(tmp_path_factory):
-    """A tiny finished run (both checkpoints present), copied by each test that damages it."""
-    out = tmp_path_factory.mktemp("finished") / "run"
-    train(tiny_config(steps=300), out, progress=False)
-    return out
-
-
-def copy_run(source, target):
-    shutil.copytree(source, target, ignore=shutil.ignore_patterns(".lock"))
-    return target
-
-
 def test_a_directory_with_run_files_but_no_config_is_never_trained_into(finished_run, tmp_path, capsys):
     """Removing config.json used to make a run directory look empty: another configuration then replaced
     its checkpoints and metrics without --overwrite. Any run file now makes it a run directory."""
@@ -440,11 +452,9 @@ def test_a_bit_flip_in_a_checkpoint_or_snapshot_is_detected(finished_run, tmp_pa
 
 
 @pytest.mark.parametrize("damaged", [("checkpoint.pt",), ("checkpoint.prev.pt",), ("checkpoint.pt", "checkpoint.prev.pt")])
-def test_a_damaged_checkpoint_falls_back_to_the_other_one(finished_run, tmp_path, capsys, damaged):
+def test_a_damaged_checkpoint_falls_back_to_the_other_one(finished_run, trained, tmp_path, capsys, damaged):
     """One damaged checkpoint: a warning, the file set aside, and the run continues from the other one
     to the same end as the uninterrupted run; both damaged: the resume stops, changing nothing."""
-    extended = copy_run(finished_run, tmp_path / "reference")
-    train(tiny_config(steps=500), extended, resume=True, progress=False)
     out = copy_run(finished_run, tmp_path / "run")
     for name in damaged:
         flip_a_data_bit(out / name)
@@ -458,7 +468,7 @@ def test_a_damaged_checkpoint_falls_back_to_the_other_one(finished_run, tmp_path
     err = capsys.readouterr().err
     assert err.count("warning:") == 1 and f"{damaged[0]} is damaged" in err
     assert (out / f"{damaged[0]}.damaged").read_bytes() == before[damaged[0]]
-    assert metrics_without_wall_time(out) == metrics_without_wall_time(extended)
+    assert metrics_without_wall_time(out) == metrics_without_wall_time(trained(tiny_config(steps=500))[0])
 
 
 @pytest.mark.parametrize("where", ["in training", "in evaluation"])

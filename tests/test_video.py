@@ -75,22 +75,15 @@ MAX_STEPS = 25
 
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):
-    """A real SAC run of 300 steps (updates from step 100, snapshots at 150 and 300) and its Run."""
-    import torch
-
+    """A real SAC run of 300 steps (updates from step 100, snapshots at 150 and 300) and its Run,
+    trained with the session's one torch thread (conftest.one_torch_thread)."""
     from lava_bridge_mj.agents.sac import SACConfig
     from lava_bridge_mj.eval.runner import RunConfig, train
 
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
     run_dir = tmp_path_factory.mktemp("tiny") / "sac" / "seed3"
     config = RunConfig(method="sac", seed=3, steps=300, eval_every=150, eval_episodes=1,
                        sac=SACConfig(hidden_sizes=(16, 16), batch_size=32, learning_starts=100))
-    try:
-        run = train(config, run_dir, progress=False)
-    finally:
-        torch.set_num_threads(threads)
-    return run_dir, run
+    return run_dir, train(config, run_dir, progress=False)
 
 
 def episode_lengths(policy, starts=("p0", "ood"), episodes=1, seed=0, max_steps=MAX_STEPS):
