@@ -26,6 +26,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from single_seed_speed import importable_tree  # bench/ is on sys.path when this script runs
 
 ROOT = Path(__file__).resolve().parent.parent
 METHODS = ("sac", "auxss", "omega_ss", "uniform_ss", "goaldist_ss", "hysac", "hysac_auxss", "jsrl", "bc", "iql")
@@ -44,18 +45,6 @@ LAUNCH = "import sys; from lava_bridge_mj.eval.cli import main; sys.exit(main())
 
 def git(*args: str) -> str:
     return subprocess.run(["git", "-C", str(ROOT), *args], capture_output=True, text=True, check=True).stdout.strip()
-
-
-def import_root(tree: Path, into: Path) -> Path:
-    """A directory to put on PYTHONPATH so that `lava_bridge_mj` (with its agents/, eval/ and assets/
-    folders as subpackages, as setup.cfg maps them) is imported from `tree`."""
-    package = into / "lava_bridge_mj"
-    package.mkdir(parents=True)
-    for entry in (tree / "lava_bridge_mj").iterdir():
-        (package / entry.name).symlink_to(entry)
-    for name in ("agents", "eval", "assets"):
-        (package / name).symlink_to(tree / name)
-    return into
 
 
 def train(name: str, path: Path, method: str, out: Path, config: Path, steps: int) -> tuple[str, str, float]:
@@ -136,8 +125,8 @@ def main(argv: list[str] | None = None) -> int:
         ref_tree.mkdir()
         archive = subprocess.run(["git", "-C", str(ROOT), "archive", ref], capture_output=True, check=True).stdout
         subprocess.run(["tar", "-x", "-C", str(ref_tree)], input=archive, check=True)
-        paths = {"working": import_root(ROOT, Path(scratch) / "path-working"),
-                 "ref": import_root(ref_tree, Path(scratch) / "path-ref")}
+        paths = {"working": importable_tree(ROOT, Path(scratch) / "path-working"),
+                 "ref": importable_tree(ref_tree, Path(scratch) / "path-ref")}
         config = work / "tiny.json"
         config.write_text(json.dumps(TINY))
         check = subprocess.run([sys.executable, "-c", "from lava_bridge_mj.eval import cli; print(','.join(cli.METHODS))"],

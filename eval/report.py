@@ -44,7 +44,7 @@ from lava_bridge_mj.eval.atomic import nearest_existing
 from lava_bridge_mj.eval.aggregate import (BOOTSTRAP_REPS, BOOTSTRAP_SEED, METRICS, THRESHOLD, Curve, Group,
                                            RunRecord, find_runs, group_runs, iqm_curves, late_means,
                                            steps_to_threshold)
-from lava_bridge_mj.eval.cli import _positive_int, format_seeds
+from lava_bridge_mj.eval.arguments import format_seeds, positive_int as _positive_int
 from lava_bridge_mj.eval.findings import check_findings, common_step, demo_size_rows, variant_rows
 from lava_bridge_mj.eval.summary import read_start_weights
 from lava_bridge_mj.eval.sweep import seed_list
@@ -75,7 +75,7 @@ def _pyplot():
 
 def _style(groups: list[Group]) -> dict[str, dict]:
     """Colour by method (the same in every figure), line style by demo set, then by variant."""
-    from lava_bridge_mj.eval.runner import METHODS
+    from lava_bridge_mj.eval.config import METHODS
 
     plt = _pyplot()
     palette = plt.get_cmap("tab10").colors
@@ -415,7 +415,7 @@ def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dic
                   budget: int | None, seeds: list[int] | None) -> list[str]:
     """Every figure and report.md into `out`; returns the warnings."""
     from lava_bridge_mj.eval.atomic import atomic_write_text
-    from lava_bridge_mj.eval.runner import METHODS
+    from lava_bridge_mj.eval.config import METHODS
 
     warnings: list[str] = []
     where = ", ".join(f"`{root}`" for root in roots)
