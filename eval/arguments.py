@@ -1,12 +1,13 @@
-"""The argument types and checks that lava-bridge-bench's commands share (training, sweep, report,
-video): integers and seeds with one-line usage errors, seed lists, --config files and output paths.
-Light: no training code is imported."""
+"""What lava-bridge-bench's commands share (training, sweep, report, video): argument types with
+one-line usage errors (integers, seeds, seed lists), --config files, output paths, and SIGTERM
+handled like Ctrl-C. Light: no training code is imported."""
 
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import threading
 from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
@@ -89,3 +90,13 @@ def check_writable(out: Path, parser: argparse.ArgumentParser) -> None:
     existing = nearest_existing(out)
     if not existing.is_dir() or not os.access(existing, os.W_OK | os.X_OK):
         parser.error(f"--out {out} cannot be written: {existing} is not a writable directory")
+
+
+def raise_keyboard_interrupt(signum, frame):
+    """A signal handler: SIGTERM stops a command the way Ctrl-C does (its cleanup runs, nothing half-written)."""
+    raise KeyboardInterrupt
+
+
+def in_main_thread() -> bool:
+    """Signal handlers can only be set from the main thread (not where a test or Ray calls main)."""
+    return threading.current_thread() is threading.main_thread()

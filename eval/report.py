@@ -44,7 +44,8 @@ from lava_bridge_mj.eval.atomic import nearest_existing
 from lava_bridge_mj.eval.aggregate import (BOOTSTRAP_REPS, BOOTSTRAP_SEED, METRICS, THRESHOLD, Curve, Group,
                                            RunRecord, find_runs, group_runs, iqm_curves, late_means,
                                            steps_to_threshold)
-from lava_bridge_mj.eval.arguments import format_seeds, positive_int as _positive_int
+from lava_bridge_mj.eval.arguments import format_seeds, in_main_thread as _in_main_thread, positive_int as _positive_int
+from lava_bridge_mj.eval.arguments import raise_keyboard_interrupt as _interrupt
 from lava_bridge_mj.eval.findings import check_findings, common_step, demo_size_rows, variant_rows
 from lava_bridge_mj.eval.summary import read_start_weights
 from lava_bridge_mj.eval.sweep import seed_list
@@ -528,16 +529,6 @@ def _unwritable(out: Path) -> str | None:
 def _error(message: str, code: int = 2) -> int:
     print(f"lava-bridge-bench report: error: {message}", file=sys.stderr)
     return code
-
-
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
-
-
-def _in_main_thread() -> bool:
-    import threading
-
-    return threading.current_thread() is threading.main_thread()
 
 
 if __name__ == "__main__":

@@ -55,7 +55,8 @@ from pathlib import Path
 
 import lava_bridge_mj
 from lava_bridge_mj.eval.atomic import atomic_write_text
-from lava_bridge_mj.eval.arguments import check_writable, format_seeds, parse_seeds, positive_int, read_config_file
+from lava_bridge_mj.eval.arguments import (check_writable, format_seeds, in_main_thread, parse_seeds, positive_int,
+                                           raise_keyboard_interrupt, read_config_file)
 from lava_bridge_mj.eval.config import METHODS, RunConfig
 from lava_bridge_mj.eval.run_files import DamagedFileError, load_torch, lock_holder, read_config
 
@@ -713,11 +714,11 @@ def _sweep(args: argparse.Namespace, argv, workers: int, configs: dict, rejected
           f"{args.backend} with {workers} worker(s) x {args.threads} torch thread(s)", flush=True)
 
     previous = {}
-    if args.backend == "local" and _in_main_thread():
+    if args.backend == "local" and in_main_thread():
         # SIGTERM stops the sweep as Ctrl-C does. SIGINT is set explicitly too (as the training CLI
         # does): a process a script starts in the background inherits SIGINT ignored, and Python
         # then leaves it ignored, so Ctrl-C or `kill -INT` would not stop the sweep
-        previous = {sig: signal.signal(sig, _raise_keyboard_interrupt) for sig in (signal.SIGINT, signal.SIGTERM)}
+        previous = {sig: signal.signal(sig, raise_keyboard_interrupt) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         if args.backend == "ray":
             run_ray(todo, record)
@@ -735,16 +736,6 @@ def _sweep(args: argparse.Namespace, argv, workers: int, configs: dict, rejected
         print("interrupted: run the same command again to resume", file=sys.stderr)
         return 130
     return 1 if any(j["status"] == "failed" for j in record.jobs) else 0
-
-
-def _in_main_thread() -> bool:
-    import threading
-
-    return threading.current_thread() is threading.main_thread()
-
-
-def _raise_keyboard_interrupt(signum, frame):
-    raise KeyboardInterrupt
 
 
 if __name__ == "__main__":

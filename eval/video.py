@@ -283,7 +283,7 @@ def main(argv: list[str] | None = None) -> int:
         except ValueError as problem:
             return error(str(problem))
         env_id, env_kwargs = config.env_id, config.env
-    previous = signal.signal(signal.SIGTERM, _interrupt) if _in_main_thread() else None
+    previous = signal.signal(signal.SIGTERM, arguments.raise_keyboard_interrupt) if arguments.in_main_thread() else None
     env = gymnasium.make(env_id, render_mode="rgb_array", max_episode_steps=args.max_steps,
                          **env_kwargs)
     try:
@@ -301,16 +301,6 @@ def main(argv: list[str] | None = None) -> int:
     summary = ", ".join(f"{start} {n}/{args.episodes}" for start, n in successes.items())
     print(f"wrote {out}: {what}" + (f" and {args.still}" if args.still is not None else "") + f"; successes {summary}")
     return 0
-
-
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
-
-
-def _in_main_thread() -> bool:
-    import threading
-
-    return threading.current_thread() is threading.main_thread()
 
 
 if __name__ == "__main__":
