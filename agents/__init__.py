@@ -1,8 +1,10 @@
-"""Agents: SAC, start-state strategies and the wrapper that plugs them into any resettable env."""
+"""Agents: SAC, start-state strategies and the wrapper that plugs them into any resettable env.
 
-from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
+The learners (`SAC`, `ReplayBuffer`) load torch, so they are imported on first use: the
+configurations and start strategies stay light."""
+
+from lava_bridge_mj.agents.configs import SACConfig
 from lava_bridge_mj.agents.reverse_curriculum import ReverseCurriculumSS, goal_reaching_demos
-from lava_bridge_mj.agents.sac import SAC, SACConfig
 from lava_bridge_mj.agents.start_state_wrapper import StartStateWrapper
 from lava_bridge_mj.agents.start_strategies import (
     NO_STATE,
@@ -20,3 +22,15 @@ from lava_bridge_mj.agents.start_strategies import (
 __all__ = ["NO_STATE", "STRATEGY_NAMES", "SAC", "AuxSS", "GoalDistSS", "OmegaSS", "P0Start", "ReplayBuffer",
            "ReverseCurriculumSS", "SACConfig", "StartStateWrapper", "StartStrategy", "UniformSS",
            "estimate_random_policy_safety", "goal_reaching_demos", "make_start_strategy"]
+
+
+def __getattr__(name: str):
+    if name == "SAC":
+        from lava_bridge_mj.agents.sac import SAC
+
+        return SAC
+    if name == "ReplayBuffer":
+        from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
+
+        return ReplayBuffer
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -14,38 +14,13 @@ median 170, mean 167): at stage 0 the guide alone would nearly finish the task.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Sequence
 from typing import Any
 
-from .checks import check_integer, check_number
+import numpy as np
 
-
-@dataclass
-class JSRLConfig:
-    """JSRL's guide and curriculum."""
-
-    guide: str = "iql"
-    """The offline learner that becomes the guide: "iql" (the JSRL paper's choice) or "bc"; trained
-    with the run's `iql` or `bc` hyperparameters on the run's demo set."""
-    guide_steps: int = 20_000
-    """Gradient steps of the guide on the demos, before the first online step."""
-    initial_horizon: int = 170
-    """h at stage 0: steps the guide acts at the start of each episode."""
-    stages: int = 10
-    """Number of shrinking steps from initial_horizon to 0."""
-    window: int = 20
-    """Training episodes at a stage whose success rate decides whether to advance."""
-    threshold: float = 0.5
-    """Success rate over the window that advances the curriculum."""
-
-    def __post_init__(self) -> None:
-        if self.guide not in ("iql", "bc"):
-            raise ValueError(f"guide must be 'iql' or 'bc', got {self.guide!r}")
-        self.guide_steps = check_integer("guide_steps", self.guide_steps, 0)
-        self.initial_horizon = check_integer("initial_horizon", self.initial_horizon, 0)
-        self.stages = check_integer("stages", self.stages, 1)
-        self.window = check_integer("window", self.window, 1)
-        self.threshold = check_number("threshold", self.threshold, 0, 1, low_inclusive=True)
+from .configs import JSRLConfig
+from .seed_batch import stack_batches
 
 
 class JSRLCurriculum:
@@ -77,3 +52,41 @@ class JSRLCurriculum:
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.stage, self.results = state["stage"], list(state["results"])
+
+
+class JSRLGuide:
+    """JSRL's guide for a batch of seeds: an offline learner (one per seed, stacked like the online
+    learner) fitted to the demo transitions before the first online step, then acting for the first
+    h steps of each training episode; each seed follows its own curriculum."""
+
+    def __init__(self, config: JSRLConfig, learner: Any, seeds: Sequence[int]):
+        self.config, self.learner, self.seeds = config, learner, tuple(seeds)
+        self.curricula = [JSRLCurriculum(config) for _ in self.seeds]
+        self.trained = False
+
+    def fit(self, demos: Any, batch_size: int) -> None:
+        """`guide_steps` updates on minibatches of the demo transitions, each seed with its own stream."""
+        rngs = [np.random.default_rng([seed, 17]) for seed in self.seeds]
+        for _ in range(self.config.guide_steps):
+            self.learner.update(stack_batches([demos.sample(batch_size, rng) for rng in rngs]))
+        self.trained = True
+
+    def act(self, obs: np.ndarray, episode_lengths: Sequence[int], actions: Any) -> Any:
+        """`actions` (one per seed) with the guide's deterministic action in place of the learner's
+        for every seed whose episode is shorter than its curriculum's horizon."""
+        guided = [length < curriculum.horizon for length, curriculum in zip(episode_lengths, self.curricula)]
+        if not any(guided):
+            return actions
+        guide_actions = self.learner.act(obs, deterministic=True)
+        return [g if use else a for use, g, a in zip(guided, guide_actions, actions)]
+
+    def seed_state(self, i: int) -> dict[str, Any]:
+        """Seed i's guide for its checkpoint: the learner's slice, whether it is fitted, the curriculum."""
+        return {"guide": self.learner.seed_state(i), "guide_trained": self.trained,
+                "curriculum": self.curricula[i].state_dict()}
+
+    def load_seed_states(self, states: Sequence[dict[str, Any]]) -> None:
+        self.learner.load_seed_states([state["guide"] for state in states])
+        self.trained = all(state["guide_trained"] for state in states)
+        for curriculum, state in zip(self.curricula, states):
+            curriculum.load_state_dict(state["curriculum"])

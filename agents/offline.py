@@ -19,79 +19,13 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 import torch
 
-from .checks import FLOAT_BYTES, check_hidden_sizes, check_integer, check_number
-from .networks import MLP, TanhGaussianActor, TwinQ, init_member, parameter_count, soft_update
+from .configs import BCConfig, IQLConfig
+from .networks import MLP, TanhGaussianActor, TwinQ, init_member, soft_update
 from .seed_batch import SeedBatchedAgent, seed_adam
-
-
-@dataclass
-class BCConfig:
-    """Behaviour cloning hyperparameters (the common D4RL-style defaults)."""
-
-    hidden_sizes: tuple[int, ...] = (256, 256)
-    """Hidden layer widths of the policy."""
-    lr: float = 3e-4
-    """Adam learning rate."""
-    batch_size: int = 256
-    """Demo transitions per gradient step."""
-
-    def __post_init__(self) -> None:
-        self.hidden_sizes = check_hidden_sizes(self.hidden_sizes)
-        self.lr = check_number("lr", self.lr)
-        self.batch_size = check_integer("batch_size", self.batch_size, 1)
-
-    def memory_bytes(self, seeds: int, obs_dim: int, act_dim: int) -> dict[str, int]:
-        """Bytes of `seeds` seeds' policies, each parameter with its gradient and two Adam moments
-        (the demo transitions are a few thousand); for `check_fits_in_memory`."""
-        actor = parameter_count(lambda: TanhGaussianActor(1, obs_dim, act_dim, self.hidden_sizes))
-        return {"hidden_sizes": seeds * FLOAT_BYTES * 4 * actor}
-
-
-@dataclass
-class IQLConfig:
-    """IQL hyperparameters: the paper's published defaults for its sparse-reward goal-reaching tasks
-    (AntMaze: expectile 0.9, temperature 10); its locomotion settings are expectile 0.7, temperature 3.
-    LavaBridge-v0 is a sparse-reward navigation task, so the AntMaze values are the default."""
-
-    hidden_sizes: tuple[int, ...] = (256, 256)
-    """Hidden layer widths of the policy, the value network and each critic."""
-    lr: float = 3e-4
-    """Adam learning rate of every network."""
-    batch_size: int = 256
-    """Demo transitions per gradient step."""
-    gamma: float = 0.99
-    """Discount factor."""
-    tau: float = 0.005
-    """Polyak rate of the target critics."""
-    expectile: float = 0.9
-    """tau of the expectile value loss: how close V(s) gets to the best in-data action's Q."""
-    temperature: float = 10.0
-    """beta of the advantage weights exp(beta A)."""
-    max_weight: float = 100.0
-    """Advantage weights are clipped at this value (the paper's 100)."""
-
-    def __post_init__(self) -> None:
-        self.hidden_sizes = check_hidden_sizes(self.hidden_sizes)
-        self.lr = check_number("lr", self.lr)
-        self.batch_size = check_integer("batch_size", self.batch_size, 1)
-        self.gamma = check_number("gamma", self.gamma, 0, 1)
-        self.tau = check_number("tau", self.tau, 0, 1)
-        self.expectile = check_number("expectile", self.expectile, 0, 1, high_inclusive=False)
-        self.temperature = check_number("temperature", self.temperature)
-        self.max_weight = check_number("max_weight", self.max_weight)
-
-    def memory_bytes(self, seeds: int, obs_dim: int, act_dim: int) -> dict[str, int]:
-        """Bytes of `seeds` seeds' networks: policy, twin critics and value network, each parameter
-        with its gradient and two Adam moments, plus the target critics; for `check_fits_in_memory`."""
-        actor = parameter_count(lambda: TanhGaussianActor(1, obs_dim, act_dim, self.hidden_sizes))
-        critic = parameter_count(lambda: TwinQ(1, obs_dim, act_dim, self.hidden_sizes))
-        value = parameter_count(lambda: MLP(1, obs_dim, 1, self.hidden_sizes))
-        return {"hidden_sizes": seeds * FLOAT_BYTES * (4 * (actor + critic + value) + critic)}
 
 
 def expectile_loss(diff: torch.Tensor, expectile: float) -> torch.Tensor:

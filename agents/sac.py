@@ -19,73 +19,13 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 import torch
 
-from .checks import FLOAT_BYTES, check_hidden_sizes, check_integer, check_number
-from .networks import TanhGaussianActor, TwinQ, init_member, parameter_count, soft_update
+from .configs import SACConfig
+from .networks import TanhGaussianActor, TwinQ, init_member, soft_update
 from .seed_batch import SeedBatchedAgent, seed_adam
-
-
-@dataclass
-class SACConfig:
-    """SAC hyperparameters. Defaults follow the paper's protocol where it gives one."""
-
-    hidden_sizes: tuple[int, ...] = (64, 64)
-    """Hidden layer widths of the actor and of each critic. 64 units update about 5x as fast as 256 on
-    2 CPU cores, and tuning runs at 64, 128 and 256 units did not separate the widths (README, Speed)."""
-    lr: float = 3e-4
-    """Adam learning rate of actor, critics and entropy coefficient."""
-    gamma: float = 0.99
-    """Discount factor."""
-    tau: float = 0.005
-    """Polyak rate of the target critics: target <- (1 - tau) * target + tau * critic after each update."""
-    batch_size: int = 256
-    """Transitions per gradient update."""
-    buffer_size: int = 10_000
-    """Replay capacity, the paper's protocol; small, so old experience is forgotten within ~20 episodes."""
-    learning_starts: int = 1_000
-    """Env steps of uniform random actions before the first update (two full-length episodes'
-    worth of data so the first minibatches are not a handful of transitions); then one update per step."""
-    initial_alpha: float = 0.01
-    """Entropy coefficient alpha before the first update; automatic tuning then adapts it. Not the
-    usual 1.0: with a single +1 reward a large entropy bonus outweighs the goal, and 0.1 and 1.0 learned
-    far slower on the tuning seeds (docs/calibration.md, section 6)."""
-    target_entropy: float | None = None
-    """Policy entropy (nats, summed over action dimensions) that the tuning of alpha holds: alpha rises
-    while the policy's entropy is below it and falls while above. None means -act_dim, the SAC
-    paper's heuristic (-2 on LavaBridge-v0); any finite number is accepted."""
-    critic_layer_norm: bool = False
-    """LayerNorm after each hidden layer of the critics (RLPD, Ball et al. 2023), which bounds how far Q
-    can extrapolate to actions the data never shows. Off by default, as in plain SAC and the paper's
-    HySAC; the setting to use when offline transitions cover states the online data never reaches,
-    where HySAC's critic otherwise diverges (docs/calibration.md, section 2)."""
-
-    def __post_init__(self) -> None:
-        self.hidden_sizes = check_hidden_sizes(self.hidden_sizes)
-        self.lr = check_number("lr", self.lr)
-        self.gamma = check_number("gamma", self.gamma, 0, 1)
-        self.tau = check_number("tau", self.tau, 0, 1)
-        self.initial_alpha = check_number("initial_alpha", self.initial_alpha)
-        if self.target_entropy is not None:
-            self.target_entropy = check_number("target_entropy", self.target_entropy, -math.inf, math.inf)
-        self.batch_size = check_integer("batch_size", self.batch_size, 1)
-        self.buffer_size = check_integer("buffer_size", self.buffer_size, 1)
-        self.learning_starts = check_integer("learning_starts", self.learning_starts, 0)
-        if not isinstance(self.critic_layer_norm, bool):
-            raise ValueError(f"critic_layer_norm must be true or false, got {self.critic_layer_norm!r}")
-
-    def memory_bytes(self, seeds: int, obs_dim: int, act_dim: int) -> dict[str, int]:
-        """Bytes of the arrays `seeds` seeds of SAC hold, by the field that sizes them: each seed's replay
-        buffer (obs, action, reward, next_obs, terminated), and the networks: every trained parameter
-        with its gradient and two Adam moments, plus the target critics. For `check_fits_in_memory`."""
-        actor = parameter_count(lambda: TanhGaussianActor(1, obs_dim, act_dim, self.hidden_sizes))
-        critic = parameter_count(lambda: TwinQ(1, obs_dim, act_dim, self.hidden_sizes, self.critic_layer_norm))
-        floats = {"buffer_size": self.buffer_size * (2 * obs_dim + act_dim + 2),
-                  "hidden_sizes": 4 * (actor + critic) + critic}
-        return {field: seeds * FLOAT_BYTES * count for field, count in floats.items()}
 
 
 def bellman_target(reward: torch.Tensor, terminated: torch.Tensor, next_value: torch.Tensor,

@@ -21,6 +21,7 @@ from __future__ import annotations
 import inspect
 import json
 import math
+from dataclasses import dataclass
 from typing import Any, Sequence
 
 import numpy as np
@@ -75,6 +76,8 @@ class StartStrategy:
     horizon: int | None = None
     """The env's step limit that `update` scores episode lengths against (AuxSS's H); None for a
     strategy that does not depend on it. `StartStateWrapper` checks it against the env's limit."""
+    settings: dict[str, Any] | None = None
+    """Every setting it was built with, defaults filled in (set by `make_start_strategy`)."""
 
     def __init__(self, states: Any):
         self._states = check_states(states)
@@ -426,17 +429,63 @@ STRATEGY_PARAMS: dict[str, tuple[str, ...]] = {
 STRATEGY_NAMES = tuple(STRATEGY_PARAMS)
 
 
-def make_start_strategy(name: str, states: Any = None, **params: Any) -> StartStrategy:
-    """Build a start strategy by its CLI name: p0, auxss, omega_ss, uniform_ss, goaldist_ss or reverse_ss.
+@dataclass(frozen=True)
+class StrategyContext:
+    """What a run supplies to its start strategy, the same for every strategy: `probe`, an env of the
+    run's task that Omega-SS's safety rollouts use (left at an arbitrary state), the task's `goal`
+    (x, y) that GoalDist-SS weighs by, the run's `seed` (Omega-SS's rollouts) and `horizon`, the env's
+    step limit (AuxSS's H). A strategy takes from it only what its parameters leave unset."""
+
+    probe: Any = None
+    goal: Sequence[float] | None = None
+    seed: int = 0
+    horizon: int | None = None
+
+    @classmethod
+    def from_env(cls, probe: Any, seed: int, horizon: int) -> "StrategyContext":
+        """The context of a run of `probe`'s task (a LavaBridgeEnv: its layout's goal)."""
+        return cls(probe=probe, goal=tuple(probe.layout.goal), seed=seed, horizon=horizon)
+
+    def fill(self, name: str, params: dict[str, Any]) -> dict[str, Any]:
+        """`params` of strategy `name` with what the run supplies added where they leave it unset."""
+        params = dict(params)
+        if name == "omega_ss" and "omega" not in params:
+            params.setdefault("seed", self.seed)
+            params.setdefault("env", self.probe)
+        if name == "goaldist_ss" and self.goal is not None:
+            params.setdefault("goal", self.goal)
+        if name == "auxss" and self.horizon is not None:
+            params.setdefault("horizon", self.horizon)
+        return params
+
+
+def make_start_strategy(name: str, states: Any = None, context: StrategyContext | None = None,
+                        **params: Any) -> StartStrategy:
+    """Build a start strategy by its CLI name: p0, auxss, omega_ss, uniform_ss, goaldist_ss or
+    reverse_ss.
 
     `states` is the (n, 4) candidate set (ignored, and may be None, for p0). Parameters are the
-    classes' keyword arguments (`STRATEGY_PARAMS` lists them). omega_ss takes exactly one of
-    `omega=` (precomputed, e.g. cached) or `env=` (estimated here by
-    `estimate_random_policy_safety` with `k`, `rollouts`, `seed`). goaldist_ss needs `goal=(x, y)`,
-    reverse_ss `episode_ids=` (agents/reverse_curriculum.py).
-    Unknown names or parameters raise ValueError naming them and what is accepted.
+    classes' keyword arguments (`STRATEGY_PARAMS` lists them); `context` supplies the run's probe
+    env, goal, seed and horizon where they are unset. omega_ss takes exactly one of `omega=`
+    (precomputed, e.g. cached) or `env=` (estimated here by `estimate_random_policy_safety` with `k`,
+    `rollouts`, `seed`). goaldist_ss needs `goal=(x, y)`, reverse_ss `episode_ids=`
+    (agents/reverse_curriculum.py). Unknown names or parameters raise
+    ValueError naming them and what is accepted.
+
+    The strategy's `settings` are every setting it was built with, the code's defaults filled in,
+    as JSON values: what a run's config leaves to the defaults, written down (provenance.json) so
+    that a later change of a default cannot silently relabel the runs made before it. The env of
+    Omega-SS's rollouts and a precomputed omega are objects, not settings, and are left out.
     """
     _check_params(name, params)
+    if context is not None:
+        params = context.fill(name, params)
+    strategy = _build(name, states, params)
+    strategy.settings = _settings(name, params)
+    return strategy
+
+
+def _build(name: str, states: Any, params: dict[str, Any]) -> StartStrategy:
     if name == "p0":
         return P0Start()
     if name == "uniform_ss":
@@ -460,13 +509,8 @@ def make_start_strategy(name: str, states: Any = None, **params: Any) -> StartSt
     return OmegaSS.from_env(states, **params)
 
 
-def strategy_settings(name: str, **params: Any) -> dict[str, Any]:
-    """Every setting of the strategy `make_start_strategy(name, states, **params)` builds, with the
-    code's defaults filled in, as JSON values: what a run's config leaves to the defaults, written
-    down so that a later change of a default cannot silently relabel the runs made before it. The
-    env of Omega-SS's rollouts and a precomputed omega are objects, not settings, and are left out.
-    """
-    _check_params(name, params)
+def _settings(name: str, params: dict[str, Any]) -> dict[str, Any]:
+    """The settings of a strategy built from valid `params` (see make_start_strategy)."""
     builder = {"p0": P0Start, "uniform_ss": UniformSS, "auxss": AuxSS, "goaldist_ss": GoalDistSS,
                "reverse_ss": _reverse_curriculum_class(),
                "omega_ss": OmegaSS.from_env if "env" in params else OmegaSS}[name]

@@ -146,7 +146,7 @@ def _flatten(values: dict[str, Any], prefix: str = "") -> dict[str, str]:
 @functools.cache
 def default_settings() -> dict[str, str]:
     """RunConfig's defaults, flattened to dotted names like a config.json's entries."""
-    from lava_bridge_mj.eval.runner import RunConfig
+    from lava_bridge_mj.eval.config import RunConfig
 
     return _flatten(RunConfig().to_dict())
 
@@ -202,7 +202,7 @@ class Group:
 def group_runs(runs: list[RunRecord]) -> list[Group]:
     """Runs grouped by configuration (see the module docstring), in the suite's task order, then the
     runner's method order, then demo set, then label; each group's runs in seed order."""
-    from lava_bridge_mj.eval.runner import METHODS
+    from lava_bridge_mj.eval.config import METHODS
 
     # an entry a config.json lacks (written before the field existed) counts as today's default
     defaults = default_settings()

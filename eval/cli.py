@@ -11,11 +11,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import shlex
 import sys
-from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -25,8 +23,9 @@ from pathlib import Path
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import lava_bridge_mj  # noqa: E402
-from lava_bridge_mj.eval.runner import MAX_SEED, METHODS, RunConfig, check_batch_fits  # noqa: E402
-from lava_bridge_mj.eval.atomic import nearest_existing  # noqa: E402
+from lava_bridge_mj.agents.methods import METHODS as METHOD_SPECS  # noqa: E402
+from lava_bridge_mj.eval import arguments  # noqa: E402
+from lava_bridge_mj.eval.config import METHODS, RunConfig  # noqa: E402
 from lava_bridge_mj.eval.run_files import run_files  # noqa: E402
 
 DEFAULTS = RunConfig()
@@ -34,52 +33,6 @@ TASK_IDS = tuple(lava_bridge_mj.TASKS)
 SUBCOMMANDS = {"report": "lava_bridge_mj.eval.report", "video": "lava_bridge_mj.eval.video",
                "sweep": "lava_bridge_mj.eval.sweep"}
 """`lava-bridge-bench NAME ...` runs module's main(rest of argv); without a name, the training command."""
-
-
-def _int_at_least(minimum: int, what: str, maximum: int | None = None):
-    """An argparse type: an integer >= minimum (and <= maximum), or a usage error naming the value."""
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
-        if value < minimum or (maximum is not None and value > maximum):
-            raise argparse.ArgumentTypeError(f"expected {what}, got {value}")
-        return value
-    return parse
-
-
-_positive_int = _int_at_least(1, "a positive integer")
-_seed = _int_at_least(0, f"an integer seed in [0, {MAX_SEED}]", MAX_SEED)
-
-
-def parse_seeds(text: str) -> list[int]:
-    """'0-24', '3', '0,2,5-7' -> a list of distinct non-negative seeds, in the order given."""
-    seeds: list[int] = []
-    for part in text.split(","):
-        low, dash, high = part.strip().partition("-")
-        try:
-            first, last = int(low), int(high if dash else low)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected seeds like 0-24 or 0,3,5-7, got {text!r}") from None
-        if first < 0 or last < first or last > MAX_SEED:
-            raise argparse.ArgumentTypeError(f"expected a range of seeds low-high in [0, {MAX_SEED}], got {part.strip()!r}")
-        seeds.extend(range(first, last + 1))
-    repeated = sorted(s for s, n in Counter(seeds).items() if n > 1)
-    if repeated:
-        raise argparse.ArgumentTypeError(f"seeds must be distinct; repeated: {repeated}")
-    return seeds
-
-
-def format_seeds(seeds: Sequence[int]) -> str:
-    """[0, 1, 2, 5] -> '0-2,5', the inverse of parse_seeds."""
-    parts, start = [], 0
-    for i in range(1, len(seeds) + 1):
-        if i == len(seeds) or seeds[i] != seeds[i - 1] + 1:
-            first, last = seeds[start], seeds[i - 1]
-            parts.append(str(first) if first == last else f"{first}-{last}")
-            start = i
-    return ",".join(parts)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -96,35 +49,29 @@ def build_parser() -> argparse.ArgumentParser:
                "of runs; video: an mp4 of a run's policy from p0 and ood; sweep: every method x demo set x "
                "seed, as batched jobs on local worker processes or Ray).")
     parser.add_argument("--method", required=True, choices=METHODS,
-                        help="sac: plain SAC from p0; auxss: the paper's episode-length start-state "
-                             "safety; omega_ss: random-policy Monte-Carlo safety; uniform_ss: uniform "
-                             "over demo states; goaldist_ss: goal-distance weighted, flattening over time; "
-                             "hysac: SAC from p0 whose minibatches are half demo transitions (HyQ); "
-                             "hysac_auxss: both HySAC's replay and AuxSS's start states; jsrl: a guide "
-                             "learned from the demos (IQL by default) acts first in each episode, for a "
-                             "horizon that shrinks as the learner succeeds; offline, "
-                             "--steps counting gradient steps on the demos: bc (behaviour cloning), iql")
+                        help="; ".join(f"{m.name}: {m.description}" + ("" if m.online else " (offline: --steps counts "
+                                  "gradient steps on the demos)") for m in METHOD_SPECS.values()))
     seeds = parser.add_mutually_exclusive_group()
-    seeds.add_argument("--seed", type=_seed, help=f"random seed of the run (default: {DEFAULTS.seed})")
-    seeds.add_argument("--seeds", type=parse_seeds, metavar="LIST",
+    seeds.add_argument("--seed", type=arguments.seed, help=f"random seed of the run (default: {DEFAULTS.seed})")
+    seeds.add_argument("--seeds", type=arguments.parse_seeds, metavar="LIST",
                        help="train several seeds together in one process (stacked networks, one batched "
                             "update for all), e.g. 0-24 or 0,3,5-7; each seed writes the run directory it "
                             "would write alone, OUT/seedS")
     parser.add_argument("--env", dest="env_id", metavar="ID", choices=TASK_IDS,
                         help=f"the task, one of {', '.join(TASK_IDS)} (default: {DEFAULTS.env_id})")
-    parser.add_argument("--steps", type=_positive_int,
+    parser.add_argument("--steps", type=arguments.positive_int,
                         help=f"online env steps (default: {DEFAULTS.steps}; the paper's protocol: 300000)")
     parser.add_argument("--demos", type=int, choices=(500, 7500),
                         help=f"shipped demo set the candidate start states come from (default: {DEFAULTS.demos})")
-    parser.add_argument("--eval-every", type=_positive_int,
+    parser.add_argument("--eval-every", type=arguments.positive_int,
                         help=f"evaluate, snapshot the policy and checkpoint every this many steps "
                              f"(default: {DEFAULTS.eval_every})")
-    parser.add_argument("--eval-episodes", type=_positive_int,
+    parser.add_argument("--eval-episodes", type=arguments.positive_int,
                         help=f"evaluation episodes per start distribution, fixed seeds (default: {DEFAULTS.eval_episodes})")
     parser.add_argument("--config", type=Path,
                         help="JSON file of RunConfig fields, e.g. {\"sac\": {\"hidden_sizes\": [256, 256]}, "
                              "\"strategy\": {\"sigma\": 0.2}}; options given here override it")
-    parser.add_argument("--out", type=_directory, default=None,
+    parser.add_argument("--out", type=arguments.directory, default=None,
                         help="run directory (default: runs/METHOD/seedSEED); with --seeds, the directory "
                              "that holds one seedS directory per seed (default: runs/METHOD)")
     written = parser.add_mutually_exclusive_group()
@@ -135,7 +82,7 @@ def build_parser() -> argparse.ArgumentParser:
                          help="replace the run already in --out instead of refusing")
     parser.add_argument("--video", action="store_true",
                         help="after training, write rollouts.mp4 of the policy from p0 and ood")
-    parser.add_argument("--threads", type=_positive_int, default=1,
+    parser.add_argument("--threads", type=arguments.positive_int, default=1,
                         help="torch CPU threads (default: 1). 1 avoids oversubscription when runs share cores "
                              "and keeps a seed's numbers independent of the seeds batched with it; 2 speeds "
                              "up a large --seeds batch on an otherwise idle 2-core machine")
@@ -143,23 +90,8 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def read_config_file(path: Path | None, parser: argparse.ArgumentParser) -> dict:
-    """The RunConfig fields of a --config JSON file ({} without one); a usage error if it is unreadable."""
-    if path is None:
-        return {}
-    try:
-        values = json.loads(path.read_text())
-    except OSError as error:
-        parser.error(f"--config {path} cannot be read: {error.strerror}")
-    except ValueError as error:
-        parser.error(f"--config {path} is not valid JSON: {error}")
-    if not isinstance(values, dict):
-        parser.error(f"--config {path} must hold a JSON object of RunConfig fields")
-    return values
-
-
 def _config_from(args: argparse.Namespace, parser: argparse.ArgumentParser) -> RunConfig:
-    values = read_config_file(args.config, parser)
+    values = arguments.read_config_file(args.config, parser)
     values["method"] = args.method
     for name in ("env_id", "seed", "steps", "demos", "eval_every", "eval_episodes"):
         if getattr(args, name) is not None:
@@ -168,21 +100,6 @@ def _config_from(args: argparse.Namespace, parser: argparse.ArgumentParser) -> R
         return RunConfig.from_dict(values, source=f"--config {args.config}" if args.config else "options")
     except ValueError as error:
         parser.error(str(error))
-
-
-def _directory(text: str) -> Path:
-    """An argparse type: a directory path; an empty one (which would mean the current directory) is refused."""
-    if not text.strip():
-        raise argparse.ArgumentTypeError(f"expected a directory, got {text!r}")
-    return Path(text)
-
-
-def _check_writable(out: Path, parser: argparse.ArgumentParser) -> None:
-    if out.exists() and not out.is_dir():
-        parser.error(f"--out {out} exists and is not a directory")
-    existing = nearest_existing(out)
-    if not existing.is_dir() or not os.access(existing, os.W_OK | os.X_OK):
-        parser.error(f"--out {out} cannot be written: {existing} is not a writable directory")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -195,19 +112,15 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     config = _config_from(args, parser)
     seeds = args.seeds or [config.seed]
-    try:
-        check_batch_fits(config, len(seeds))
-    except ValueError as error:
-        parser.error(str(error))
     if args.seeds:
         root = args.out or Path("runs") / config.method
         outs = [root / f"seed{seed}" for seed in seeds]
     else:
         outs = [args.out or Path("runs") / config.method / f"seed{config.seed}"]
     if args.out is not None:
-        _check_writable(args.out, parser)
+        arguments.check_writable(args.out, parser)
     for out in outs:
-        _check_writable(out, parser)
+        arguments.check_writable(out, parser)
         found = run_files(out)
         if found and not (args.resume or args.overwrite):
             parser.error(f"--out {out} already holds a run ({', '.join(found)}); pass --resume to continue it, "
@@ -215,8 +128,13 @@ def main(argv: list[str] | None = None) -> int:
 
     import torch  # after argument checks, so --help and usage errors are instant
 
+    from lava_bridge_mj.eval.runner import RunInterrupted, check_batch_fits, train
+
+    try:
+        check_batch_fits(config, len(seeds))
+    except ValueError as error:
+        parser.error(str(error))
     torch.set_num_threads(args.threads)
-    from lava_bridge_mj.eval.runner import RunInterrupted, train
 
     try:
         run = train(config, outs, seeds=seeds, resume=args.resume, overwrite=args.overwrite,

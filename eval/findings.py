@@ -44,6 +44,7 @@ import math
 
 import numpy as np
 
+from lava_bridge_mj.agents.methods import METHODS
 from lava_bridge_mj.eval.aggregate import Group, demos_label, iqm, steps_to_threshold
 
 REPRODUCED, PARTLY, NOT, MISSING = "reproduced", "partly", "not reproduced", "missing runs"
@@ -73,18 +74,14 @@ def pick(groups: list[Group], method: str, demos: int = 500) -> Group | None:
 def common_step(groups: list[Group]) -> float | None:
     """The last evaluation step every online group has, when some group has evaluated further (the
     findings then stop there); None when they all end at the same step."""
-    from lava_bridge_mj.eval.runner import OFFLINE_METHODS
-
-    ends = {g.steps[-1] for g in groups if g.method not in OFFLINE_METHODS and len(g.steps)}
+    ends = {g.steps[-1] for g in groups if METHODS[g.method].online and len(g.steps)}
     return min(ends) if len(ends) > 1 else None
 
 
 def _cut(groups: list[Group], step: float | None) -> list[Group]:
-    from lava_bridge_mj.eval.runner import OFFLINE_METHODS
-
     if step is None:
         return groups
-    return [g if g.method in OFFLINE_METHODS else dataclasses.replace(g, runs=[
+    return [g if not METHODS[g.method].online else dataclasses.replace(g, runs=[
         dataclasses.replace(run, rows=[row for row in run.rows if row["step"] <= step]) for run in g.runs])
         for g in groups]
 

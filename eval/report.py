@@ -46,7 +46,8 @@ from lava_bridge_mj.eval.atomic import nearest_existing
 from lava_bridge_mj.eval.aggregate import (BOOTSTRAP_REPS, BOOTSTRAP_SEED, METRICS, THRESHOLD, Curve, Group,
                                            RunRecord, find_runs, group_runs, iqm_curves, late_means,
                                            steps_to_threshold)
-from lava_bridge_mj.eval.cli import _positive_int, format_seeds
+from lava_bridge_mj.eval.arguments import format_seeds, in_main_thread as _in_main_thread, positive_int as _positive_int
+from lava_bridge_mj.eval.arguments import raise_keyboard_interrupt as _interrupt
 from lava_bridge_mj.eval import statistics as stats
 from lava_bridge_mj.eval.findings import check_findings, common_step, demo_size_rows, is_default, pick, variant_rows
 from lava_bridge_mj.eval.summary import read_start_weights
@@ -79,7 +80,7 @@ def _pyplot():
 
 def _style(groups: list[Group]) -> dict[str, dict]:
     """Colour by method (the same in every figure), line style by demo set, then by variant."""
-    from lava_bridge_mj.eval.runner import METHODS
+    from lava_bridge_mj.eval.config import METHODS
 
     plt = _pyplot()
     palette = plt.get_cmap("tab10").colors
@@ -546,7 +547,7 @@ def _task_sections(groups: list[Group], curves: dict, threshold: float, reps: in
                    warnings: list[str], heading: str, prefix: str) -> list[str]:
     """The figures and tables of the groups of one task, under `heading`-level titles, figure files
     named `prefix` + name."""
-    from lava_bridge_mj.eval.runner import METHODS
+    from lava_bridge_mj.eval.config import METHODS
 
     lines: list[str] = []
 
@@ -649,16 +650,6 @@ def _unwritable(out: Path) -> str | None:
 def _error(message: str, code: int = 2) -> int:
     print(f"lava-bridge-bench report: error: {message}", file=sys.stderr)
     return code
-
-
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
-
-
-def _in_main_thread() -> bool:
-    import threading
-
-    return threading.current_thread() is threading.main_thread()
 
 
 if __name__ == "__main__":

@@ -1,4 +1,19 @@
-"""The files of a run directory: which names make one, its writer's lock, and verified torch files.
+"""The files of a run directory: their names and formats, their writer's lock, and verified torch files.
+
+A run directory holds:
+    config.json         the full configuration (a resumed run must match it)
+    provenance.json     per training session (the first, each resume): its steps, the code and library
+                        versions that ran it and the start strategy's settings, defaults filled in
+    metrics.csv         one row per evaluation (METRIC_FIELDS): steps, success from p0 and ood, returns,
+                        SAC stats
+    start_weights.npz   the start strategy's candidate states and its weights at every evaluation
+    episodes.csv        one row per training episode of an online method (EPISODE_FIELDS)
+    checkpoint.pt       the latest checkpoint: everything needed to continue exactly
+    checkpoint.prev.pt  the one before it (a resume falls back to it when the latest is damaged)
+    policies/step_N.pt  the actor's weights at every evaluation (for videos and later analysis)
+    final.pt            the checkpoint at the end of training
+    .lock               held by the process writing the run
+The trainer, sweep and video read and write them through this module.
 
 Checkpoints and policy snapshots are torch's zip archives, whose every record carries a CRC-32 that
 torch itself never checks on load: a flipped bit would silently change a resumed run or a video.
@@ -10,16 +25,20 @@ writer, and the file is replaced atomically.
 
 from __future__ import annotations
 
+import csv
 import io
+import json
 import os
+import shutil
 import zipfile
+from collections.abc import Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-import torch
+import numpy as np
 
-from lava_bridge_mj.eval.atomic import atomic_write
+from lava_bridge_mj.eval.atomic import atomic_write, atomic_write_text
 
 CHECKPOINTS = ("checkpoint.pt", "checkpoint.prev.pt")
 """The latest checkpoint and the one before it (a resume falls back to it when the latest is damaged)."""
@@ -27,8 +46,20 @@ RUN_FILES = ("config.json", "provenance.json", "metrics.csv", "start_weights.npz
              "final.pt", "rollouts.mp4")
 """What a run directory holds besides policies/: what --overwrite removes."""
 POLICIES = "policies"
+"""policies/step_N.pt: the actor's weights at every evaluation."""
 LOCK = ".lock"
 """Locked (flock) by the process writing the run; it holds that process's pid."""
+
+
+METRIC_FIELDS = ("step", "episodes", "success_p0", "success_ood", "return_p0", "return_ood",
+                 "train_return", "train_success", "q_mean", "alpha", "critic_loss", "actor_loss", "guide_horizon",
+                 "wall_time")
+"""metrics.csv: one row per evaluation."""
+EPISODE_FIELDS = ("episode", "step", "start_index", "start_x", "start_y", "length", "success", "return")
+"""episodes.csv: the episode's number (1-based), the training step it ended at, the candidate state it
+started from (-1: the env's own p0 start) and that start's position, its length, whether it reached
+the goal, its return. What separates 'never tried from there' from 'tried and failed' per start."""
+CHECKPOINT_VERSION = 3  # 3: optimisers in two parameter groups (seed_adam)
 
 
 class RunDirectoryError(ValueError):
@@ -50,8 +81,130 @@ def run_files(directory: str | Path) -> list[str]:
     return found
 
 
+def remove_run(directory: Path) -> None:
+    """Delete the run files of `directory` (what --overwrite replaces)."""
+    for name in RUN_FILES:
+        (directory / name).unlink(missing_ok=True)
+    shutil.rmtree(directory / POLICIES, ignore_errors=True)
+
+
+def read_config(directory: Path) -> dict[str, Any] | None:
+    """The values of directory/config.json; None without one; DamagedFileError naming the file when it
+    cannot be read, is not valid JSON or is not a JSON object."""
+    path = Path(directory) / "config.json"
+    if not path.exists():
+        return None
+    try:
+        values = json.loads(path.read_text())
+    except OSError as error:
+        raise DamagedFileError(f"{path} cannot be read: {error.strerror or error}") from None
+    except ValueError as error:  # invalid JSON or bytes that are no text
+        raise DamagedFileError(f"{path} is not valid JSON: {error}") from None
+    if not isinstance(values, dict):
+        raise DamagedFileError(f"{path} does not hold a run configuration (a JSON object)")
+    return values
+
+
+def write_config(directory: Path, values: dict[str, Any]) -> None:
+    """config.json: the run's full configuration (RunConfig.to_dict)."""
+    atomic_write_text(directory / "config.json", json.dumps(values, indent=2) + "\n")
+
+
+def check_run_directory(config: Any, directory: Path, resume: bool, overwrite: bool) -> None:
+    """Refuse (RunDirectoryError) a directory holding any run file unless resuming the same
+    configuration (`config.continues` its config.json) or overwriting."""
+    found = run_files(directory)
+    if not found or overwrite:
+        return
+    if not resume:
+        raise RunDirectoryError(f"{directory} already holds a run ({', '.join(found)}); resume it or overwrite it")
+    config_file = directory / "config.json"
+    if not config_file.exists():
+        raise RunDirectoryError(f"{directory} holds run files ({', '.join(found)}) but no config.json, so "
+                                "nothing shows they belong to this configuration; not resuming into it "
+                                "(overwrite it, or choose another directory)")
+    try:
+        existing = read_config(directory)
+    except DamagedFileError as error:
+        raise RunDirectoryError(f"{error}; not resuming into it") from None
+    if not config.continues(existing):
+        raise RunDirectoryError(f"{directory} holds a run with another configuration; resume it "
+                                "with the same options (--steps may change), or choose another directory")
+    read_provenance(directory)  # refuse a damaged record before training changes anything
+
+
+def read_provenance(directory: Path) -> list[dict[str, Any]]:
+    """The run's earlier training sessions; none for a new run or one made before provenance was recorded."""
+    path = directory / "provenance.json"
+    if not path.exists():
+        return []
+    try:
+        sessions = json.loads(path.read_text())
+    except ValueError:
+        sessions = None
+    if not (isinstance(sessions, list) and all(isinstance(s, dict) for s in sessions)):
+        raise RunDirectoryError(f"{path} is not a JSON list of training sessions; not resuming into it "
+                                "(move it aside to continue without the earlier sessions' record)")
+    return sessions
+
+
+def append_provenance(directory: Path, session: dict[str, Any], resume: bool) -> None:
+    """Record a training session in provenance.json (after the earlier ones when resuming)."""
+    sessions = read_provenance(directory) if resume else []
+    atomic_write_text(directory / "provenance.json", json.dumps([*sessions, session], indent=2) + "\n")
+
+
+def write_results(directory: Path, rows: Sequence[dict], steps: np.ndarray, states: np.ndarray,
+                  probabilities: np.ndarray, episode_log: Sequence[tuple] | None) -> None:
+    """metrics.csv (`rows`), start_weights.npz (the candidate `states` and their `probabilities` at
+    each evaluation's step) and, unless `episode_log` is None, episodes.csv."""
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=METRIC_FIELDS, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    atomic_write_text(directory / "metrics.csv", text.getvalue())
+    atomic_write(directory / "start_weights.npz",
+                 lambda f: np.savez(f, steps=steps, states=states, probabilities=probabilities))
+    if episode_log is not None:
+        text = io.StringIO()
+        writer = csv.writer(text, lineterminator="\n")
+        writer.writerow(EPISODE_FIELDS)
+        writer.writerows(episode_log)
+        atomic_write_text(directory / "episodes.csv", text.getvalue())
+
+
+def save_checkpoint(directory: Path, state: dict, name: str = CHECKPOINTS[0]) -> None:
+    """Write `state` atomically; the checkpoint it replaces becomes checkpoint.prev.pt first."""
+    path = directory / name
+    if name == CHECKPOINTS[0] and path.exists():
+        link = directory / f".{CHECKPOINTS[1]}.link{os.getpid()}"
+        link.unlink(missing_ok=True)
+        os.link(path, link)  # a second name for the same file, then an atomic rename over prev
+        os.replace(link, directory / CHECKPOINTS[1])
+    save_torch(path, state)
+
+
+def read_checkpoint(path: Path, config: Any) -> dict:
+    """A checkpoint's state; DamagedFileError when the file is damaged or not a checkpoint (a resume
+    then falls back to the other one), ValueError when it belongs to another configuration (one that
+    `config.continues` refuses) or format."""
+    state = load_torch(path)
+    if not isinstance(state, dict) or "version" not in state:
+        raise DamagedFileError(f"{path} is not a lava-bridge-mj checkpoint")
+    if state["version"] != CHECKPOINT_VERSION:
+        raise ValueError(f"checkpoint {path} has format version {state['version']!r} and this lava-bridge-mj "
+                         f"reads version {CHECKPOINT_VERSION}: continue it with the version that wrote it, "
+                         "or start a new run directory")
+    if not config.continues(state["config"]):
+        raise ValueError(f"checkpoint {path} was written with another configuration; "
+                         "resume with the same options (--steps may change) or start a new run directory")
+    return state
+
+
 def save_torch(path: str | Path, obj: Any) -> None:
     """torch.save `obj` to `path` atomically (OSError names the file when the write fails)."""
+    import torch  # on use: readers of metrics and configs never load torch
+
     buffer = io.BytesIO()
     torch.save(obj, buffer)
     payload = buffer.getvalue()
@@ -61,6 +214,8 @@ def save_torch(path: str | Path, obj: Any) -> None:
 def load_torch(path: str | Path, *, weights_only: bool = False) -> Any:
     """torch.load `path` after checking the CRC of every record of its zip archive; DamagedFileError
     naming the file when it is truncated, bit-flipped or not a torch file. FileNotFoundError as usual."""
+    import torch
+
     path = Path(path)
     payload = path.read_bytes()
     try:

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 import lava_bridge_mj
+from lava_bridge_mj.eval import run_files
 from lava_bridge_mj.layout import Layout
 
 THRESHOLD = 0.8
@@ -88,18 +89,12 @@ def read_start_weights(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def read_config(run_dir: Path) -> dict:
-    """config.json of a run directory; ValueError naming the file when it is not a JSON object."""
-    path = run_dir / "config.json"
-    try:
-        config = json.loads(path.read_text())
-    except OSError as error:
-        raise ValueError(f"{path} cannot be read: {error.strerror or error}") from None
-    except ValueError as error:  # invalid JSON or bytes that are no text
-        raise ValueError(f"{path} is not valid JSON: {error}") from None
-    if not isinstance(config, dict):
-        raise ValueError(f"{path} does not hold a run configuration (a JSON object)")
+    """config.json of a run directory (`run_files.read_config`); ValueError naming the file when it is
+    missing, unreadable or not a JSON object."""
+    config = run_files.read_config(run_dir)
+    if config is None:
+        raise ValueError(f"{run_dir / 'config.json'} cannot be read: it does not exist")
     return config
-
 
 def run_dirs(path: Path) -> list[Path]:
     """`path` itself if it is a run directory, else its run subdirectories in seed order."""

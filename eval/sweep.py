@@ -55,9 +55,10 @@ from pathlib import Path
 
 import lava_bridge_mj
 from lava_bridge_mj.eval.atomic import atomic_write_text
-from lava_bridge_mj.eval.run_files import lock_holder
-from lava_bridge_mj.eval.cli import _check_writable, _positive_int, format_seeds, parse_seeds, read_config_file
-from lava_bridge_mj.eval.runner import METHODS, RunConfig, RunInterrupted, train
+from lava_bridge_mj.eval.arguments import (check_writable, format_seeds, in_main_thread, parse_seeds, positive_int,
+                                           raise_keyboard_interrupt, read_config_file)
+from lava_bridge_mj.eval.config import METHODS, RunConfig
+from lava_bridge_mj.eval.run_files import DamagedFileError, load_torch, lock_holder, read_config
 
 DEMO_SETS = (500, 7500)
 SEEDS_PER_JOB = 25
@@ -130,13 +131,12 @@ def plan(methods: Sequence[str], demo_sets: Sequence[int], seeds: Sequence[int],
 def seed_status(config: RunConfig, directory: Path) -> str:
     """'finished' (final.pt and this configuration), 'foreign' (config.json of another run, or
     unreadable) or 'todo' (nothing yet, this configuration unfinished, or finished at another budget)."""
-    config_file = directory / "config.json"
-    if not config_file.exists():
-        return "todo"
     try:
-        existing = json.loads(config_file.read_text())
-    except ValueError:
+        existing = read_config(directory)
+    except DamagedFileError:
         return "foreign"
+    if existing is None:
+        return "todo"
     if not config.continues(existing):
         return "foreign"
     # a run finished at a smaller budget is todo: the resume extends it to this one
@@ -145,9 +145,9 @@ def seed_status(config: RunConfig, directory: Path) -> str:
 
 def _foreign_error(config: RunConfig, directory: Path) -> str:
     try:
-        existing = json.loads((directory / "config.json").read_text())
-    except ValueError:
-        return f"{directory}/config.json is not valid JSON; not training into it"
+        existing = read_config(directory)
+    except DamagedFileError as error:
+        return f"{error}; not training into it"
     differ = sorted(k for k, v in config.to_dict().items()
                     if k != "steps" and (not isinstance(existing, dict) or existing.get(k) != v))
     return (f"{directory} holds a run with another configuration (differs in {', '.join(differ)}); not "
@@ -174,8 +174,6 @@ def wait_for_writers(directories: Sequence[Path], timeout: float, poll: float = 
 def _checkpoint_step(directory: Path):
     """The step of the run's latest checkpoint; None without one; the error text if it is unreadable
     (that seed then trains in a batch of its own, where the trainer reports the error)."""
-    from lava_bridge_mj.eval.run_files import load_torch
-
     path = directory / "checkpoint.pt"
     if not path.exists():
         return None
@@ -192,6 +190,8 @@ def run_job(job: Job, config_values: dict, out: str | Path, threads: int = 1) ->
     Seeds already finished are skipped; seeds with checkpoints resume from them, grouped into one
     batch per checkpoint step (a batch resumes only from a step all its seeds share); a directory
     that holds another configuration is an error, and the job's other seeds still train."""
+    from lava_bridge_mj.eval.runner import RunInterrupted, train  # loads torch: the planner does not
+
     started = time.perf_counter()
     result = {"status": "done", "trained": [], "skipped": [], "resumed": {}, "diverged": {}, "error": None}
     errors = []
@@ -582,20 +582,20 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--demos", type=_choices("demo set", DEMO_SETS, int), default=[defaults.demos],
                         metavar="LIST", help=f"comma-separated shipped demo sets, 500 and/or 7500 (default: "
                                              f"{defaults.demos})")
-    parser.add_argument("--steps", type=_positive_int, help=f"steps per run (default: {defaults.steps})")
-    parser.add_argument("--eval-every", type=_positive_int, help=f"default: {defaults.eval_every}")
-    parser.add_argument("--eval-episodes", type=_positive_int, help=f"default: {defaults.eval_episodes}")
+    parser.add_argument("--steps", type=positive_int, help=f"steps per run (default: {defaults.steps})")
+    parser.add_argument("--eval-every", type=positive_int, help=f"default: {defaults.eval_every}")
+    parser.add_argument("--eval-episodes", type=positive_int, help=f"default: {defaults.eval_episodes}")
     parser.add_argument("--config", type=Path,
                         help="JSON file of RunConfig fields shared by every run (method, demos and seed "
                              "come from the sweep); a field a method rejects fails that method's jobs")
     parser.add_argument("--out", type=Path, required=True, help="directory of the sweep's runs")
-    parser.add_argument("--workers", type=_positive_int,
+    parser.add_argument("--workers", type=positive_int,
                         help="jobs running at once (default: the CPUs this process may use; with --backend "
                              "ray, the cluster's CPUs / --threads); also the least number of jobs the seeds "
                              "are split into")
-    parser.add_argument("--seeds-per-job", type=_positive_int, default=SEEDS_PER_JOB,
+    parser.add_argument("--seeds-per-job", type=positive_int, default=SEEDS_PER_JOB,
                         help="most seeds trained together in one job (default: %(default)s)")
-    parser.add_argument("--threads", type=_positive_int, default=1,
+    parser.add_argument("--threads", type=positive_int, default=1,
                         help="torch threads per job, and CPUs a Ray task asks for (default: 1, which keeps "
                              "a seed's numbers independent of its batch)")
     parser.add_argument("--backend", choices=("local", "ray"), default="local",
@@ -622,7 +622,7 @@ def main(argv: list[str] | None = None) -> int:
             import ray
         except ImportError:
             parser.error(f"--backend ray needs Ray, an optional extra: {RAY_EXTRA}")
-    _check_writable(args.out, parser)
+    check_writable(args.out, parser)
     values = read_config_file(args.config, parser)
     for name in ("steps", "eval_every", "eval_episodes"):
         if getattr(args, name) is not None:
@@ -714,11 +714,11 @@ def _sweep(args: argparse.Namespace, argv, workers: int, configs: dict, rejected
           f"{args.backend} with {workers} worker(s) x {args.threads} torch thread(s)", flush=True)
 
     previous = {}
-    if args.backend == "local" and _in_main_thread():
+    if args.backend == "local" and in_main_thread():
         # SIGTERM stops the sweep as Ctrl-C does. SIGINT is set explicitly too (as the training CLI
         # does): a process a script starts in the background inherits SIGINT ignored, and Python
         # then leaves it ignored, so Ctrl-C or `kill -INT` would not stop the sweep
-        previous = {sig: signal.signal(sig, _raise_keyboard_interrupt) for sig in (signal.SIGINT, signal.SIGTERM)}
+        previous = {sig: signal.signal(sig, raise_keyboard_interrupt) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         if args.backend == "ray":
             run_ray(todo, record)
@@ -736,16 +736,6 @@ def _sweep(args: argparse.Namespace, argv, workers: int, configs: dict, rejected
         print("interrupted: run the same command again to resume", file=sys.stderr)
         return 130
     return 1 if any(j["status"] == "failed" for j in record.jobs) else 0
-
-
-def _in_main_thread() -> bool:
-    import threading
-
-    return threading.current_thread() is threading.main_thread()
-
-
-def _raise_keyboard_interrupt(signum, frame):
-    raise KeyboardInterrupt
 
 
 if __name__ == "__main__":

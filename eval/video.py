@@ -185,10 +185,9 @@ def load_policy(run_dir: str | Path, policy: str = "final") -> tuple[Policy, Any
 
     Returns (the policy, the run's RunConfig, a description of what was loaded). ValueError with a
     one-line reason when the directory, its config or the policy is missing or unreadable."""
-    import torch
-
-    from lava_bridge_mj.eval.run_files import load_torch
-    from lava_bridge_mj.eval.runner import RunConfig, make_agent
+    from lava_bridge_mj.eval.config import RunConfig
+    from lava_bridge_mj.eval.run_files import load_torch, read_config
+    from lava_bridge_mj.eval.runner import make_agent
 
     run_dir = Path(run_dir)
     spec = POLICY_SPEC.fullmatch(policy)
@@ -200,7 +199,7 @@ def load_policy(run_dir: str | Path, policy: str = "final") -> tuple[Policy, Any
     if not config_file.is_file():
         raise ValueError(f"{run_dir} holds no config.json: not a run directory")
     try:
-        config = RunConfig.from_dict(json.loads(config_file.read_text()), source=str(config_file))
+        config = RunConfig.from_dict(read_config(run_dir), source=str(config_file))
     except ValueError as error:  # invalid JSON, unknown or bad fields
         raise ValueError(f"{config_file} is not a usable run configuration: {error}") from None
     snapshot = spec.group(1) is not None  # policies/step_N.pt holds the actor's weights alone
@@ -231,7 +230,7 @@ def main(argv: list[str] | None = None) -> int:
     import gymnasium
 
     import lava_bridge_mj
-    from lava_bridge_mj.eval.cli import _seed
+    from lava_bridge_mj.eval import arguments
 
     parser = argparse.ArgumentParser(
         prog="lava-bridge-bench video",
@@ -248,7 +247,7 @@ def main(argv: list[str] | None = None) -> int:
                         help=f"episodes per start distribution, 1-{MAX_EPISODES} (default: %(default)s)")
     parser.add_argument("--max-steps", type=int, default=lava_bridge_mj.MAX_EPISODE_STEPS,
                         help="cut each episode after this many steps (default: %(default)s, the env's limit)")
-    parser.add_argument("--seed", type=_seed, default=0, help="episode i starts from reset(seed=SEED + i)")
+    parser.add_argument("--seed", type=arguments.seed, default=0, help="episode i starts from reset(seed=SEED + i)")
     parser.add_argument("--out", type=Path, default=None, help="video file to write, .mp4 (default: "
                         "RUN_DIR/rollouts.mp4, RUN_DIR/rollouts_step_N.mp4 for --policy step_N, runs/expert.mp4 "
                         "with --expert)")
@@ -284,7 +283,7 @@ def main(argv: list[str] | None = None) -> int:
         except ValueError as problem:
             return error(str(problem))
         env_id, env_kwargs = config.env_id, config.env
-    previous = signal.signal(signal.SIGTERM, _interrupt) if _in_main_thread() else None
+    previous = signal.signal(signal.SIGTERM, arguments.raise_keyboard_interrupt) if arguments.in_main_thread() else None
     env = gymnasium.make(env_id, render_mode="rgb_array", max_episode_steps=args.max_steps,
                          **env_kwargs)
     try:
@@ -302,16 +301,6 @@ def main(argv: list[str] | None = None) -> int:
     summary = ", ".join(f"{start} {n}/{args.episodes}" for start, n in successes.items())
     print(f"wrote {out}: {what}" + (f" and {args.still}" if args.still is not None else "") + f"; successes {summary}")
     return 0
-
-
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
-
-
-def _in_main_thread() -> bool:
-    import threading
-
-    return threading.current_thread() is threading.main_thread()
 
 
 if __name__ == "__main__":

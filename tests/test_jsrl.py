@@ -53,11 +53,11 @@ TINY = dict(method="jsrl", seed=2, steps=400, eval_every=100, eval_episodes=2,
 def test_the_guide_acts_for_exactly_h_steps_then_the_learner(tmp_path, monkeypatch):
     run = Run([RunConfig(**TINY)], [tmp_path])
     seed_run = run.seed_runs[0]
-    seed_run.curriculum.stage = 1  # h = 20
+    run.guide.curricula[0].stage = 1  # h = 20
     # each policy answers with its own constant action, so the actions taken show who acted
-    monkeypatch.setattr(run.guide, "act", lambda obs, deterministic=False: np.full((*obs.shape[:-1], 2), 0.5))
+    monkeypatch.setattr(run.guide.learner, "act", lambda obs, deterministic=False: np.full((*obs.shape[:-1], 2), 0.5))
     monkeypatch.setattr(run.agent, "act", lambda obs, deterministic=False: np.full((*obs.shape[:-1], 2), -0.25))
-    run.guide_trained = True
+    run.guide.trained = True
     taken = []
     original_observe = seed_run.observe
     monkeypatch.setattr(seed_run, "observe", lambda step, action, *rest: (taken.append(np.array(action)),

@@ -20,7 +20,8 @@ from conftest import read_only  # noqa: E402
 from rliable import metrics as rliable_metrics  # noqa: E402
 
 from lava_bridge_mj.eval import aggregate, cli, findings, report  # noqa: E402
-from lava_bridge_mj.eval.runner import METHODS, METRIC_FIELDS, RunConfig  # noqa: E402
+from lava_bridge_mj.eval.config import METHODS, RunConfig  # noqa: E402
+from lava_bridge_mj.eval.run_files import METRIC_FIELDS  # noqa: E402
 
 BASE_CONFIG = RunConfig().to_dict()
 

@@ -18,8 +18,10 @@ from lava_bridge_mj.agents.sac import SACConfig
 from lava_bridge_mj.agents.start_strategies import GoalDistSS
 from lava_bridge_mj.eval import cli
 from lava_bridge_mj.eval.provenance import git_state
-from lava_bridge_mj.eval.runner import (EPISODE_FIELDS, METHOD_STRATEGIES, METHODS, METRIC_FIELDS, Run, RunConfig,
-                                        RunDirectoryError, train)
+from lava_bridge_mj.agents.methods import METHODS as METHOD_SPECS
+from lava_bridge_mj.eval.config import METHODS, RunConfig
+from lava_bridge_mj.eval.run_files import EPISODE_FIELDS, METRIC_FIELDS, RunDirectoryError
+from lava_bridge_mj.eval.runner import Run, train
 
 TINY_SAC = SACConfig(hidden_sizes=(16, 16), batch_size=32, buffer_size=500, learning_starts=100)
 
@@ -79,7 +81,7 @@ def test_every_method_writes_a_complete_run_directory(trained, method):
     assert sorted(p.name for p in (tmp_path / "policies").iterdir()) == ["step_100.pt", "step_200.pt", "step_300.pt"]
     weights = np.load(tmp_path / "start_weights.npz")
     assert weights["steps"].tolist() == [100, 200, 300]
-    expected_states = 0 if METHOD_STRATEGIES[method] == "p0" else 20
+    expected_states = 0 if METHOD_SPECS[method].start == "p0" else 20
     assert weights["probabilities"].shape == (3, expected_states)
     assert weights["states"].shape == (20, 4)
     assert run.step == 300
@@ -399,7 +401,7 @@ def test_hysac_minibatch_takes_the_configured_share_from_the_demos(tmp_path, fra
 
 def test_hysac_offline_buffer_holds_every_demo_and_is_never_overwritten(tmp_path):
     run = train(tiny_config("hysac", steps=300, env={"goal_reward": 2.0}), tmp_path, progress=False)
-    offline, demos = run.seed_runs[0].offline, lava_bridge_mj.load_demos(500)
+    offline, demos = run.seed_runs[0].demos, lava_bridge_mj.load_demos(500)
     assert len(offline) == offline.capacity == 500 and offline.pos == 0
     np.testing.assert_array_equal(offline.obs, demos["observations"].astype(np.float32))
     np.testing.assert_array_equal(offline.action, demos["actions"].astype(np.float32))

@@ -18,8 +18,8 @@ from lava_bridge_mj.agents.start_strategies import (
     P0Start,
     UniformSS,
     estimate_random_policy_safety,
+    StrategyContext,
     make_start_strategy,
-    strategy_settings,
 )
 
 # Three states for hand computation: S1 is 0.3 m from S0 in x, S2 differs from S0 only in vy (0.6 m/s).
@@ -199,7 +199,7 @@ def test_omega_ss_clamp_sets_the_largest_weight():
     states = np.array([[2.0, -1.0, 0, 0], [9.0, -1.0, 0, 0]])
     estimated = make_start_strategy("omega_ss", states, env=CountdownEnv(), rollouts=3, clamp=0.25)
     np.testing.assert_allclose(estimated.weights, [4.0, 1.0], rtol=1e-12)
-    assert strategy_settings("omega_ss", env=CountdownEnv(), clamp=0.25)["clamp"] == 0.25
+    assert estimated.settings["clamp"] == 0.25
 
 
 def test_omega_ss_ranks_a_state_over_lava_above_open_space():
@@ -349,19 +349,32 @@ def test_auxss_defaults_are_documented_values():
 
 
 def test_strategy_settings_fill_in_the_defaults_and_keep_what_was_given():
-    settings = strategy_settings("auxss", delta=0.01)
+    settings = make_start_strategy("auxss", THREE_STATES, delta=0.01).settings
     aux = make_start_strategy("auxss", THREE_STATES)
     assert settings == {"horizon": aux.horizon, "delta": 0.01, "sigma": aux.sigma, "state_scale": [1.0, 1.0, 1.0, 1.0],
                         "count_successes": aux.count_successes, "ema": aux.ema, "kernel_dims": aux.kernel_dims,
                         "timeout_weight": aux.timeout_weight}
-    goaldist = strategy_settings("goaldist_ss", goal=np.array([1.5, 2.0]))
+    goaldist = make_start_strategy("goaldist_ss", THREE_STATES, goal=np.array([1.5, 2.0])).settings
     assert goaldist["goal"] == [1.5, 2.0] and goaldist["temperature_growth"] == GoalDistSS(
         THREE_STATES, goal=(1.5, 2.0)).temperature_growth
     # the rollouts' env and a precomputed omega are objects, not settings
-    assert strategy_settings("omega_ss", env=object(), seed=3) == {"k": 4, "rollouts": 32, "seed": 3, "clamp": 0.05}
-    assert strategy_settings("omega_ss", omega=[1.0, 0.5, 0.0]) == {"clamp": 0.05}
-    assert strategy_settings("uniform_ss") == strategy_settings("p0") == {}
+    assert make_start_strategy("omega_ss", THREE_STATES, env=CountdownEnv(), seed=3, rollouts=2).settings == {
+        "k": 4, "rollouts": 2, "seed": 3, "clamp": 0.05}
+    assert make_start_strategy("omega_ss", THREE_STATES, omega=[1.0, 0.5, 0.0]).settings == {"clamp": 0.05}
+    assert make_start_strategy("uniform_ss", THREE_STATES).settings == make_start_strategy("p0").settings == {}
     assert json.loads(json.dumps(settings)) == settings
+
+
+def test_the_context_fills_only_what_the_parameters_leave_unset():
+    context = StrategyContext(probe=CountdownEnv(), goal=(1.5, 2.0), seed=7, horizon=300)
+    assert make_start_strategy("auxss", THREE_STATES, context).horizon == 300
+    assert make_start_strategy("auxss", THREE_STATES, context, horizon=500).horizon == 500
+    assert make_start_strategy("goaldist_ss", THREE_STATES, context).settings["goal"] == [1.5, 2.0]
+    assert make_start_strategy("goaldist_ss", THREE_STATES, context, goal=(0, 0)).settings["goal"] == [0, 0]
+    omega = make_start_strategy("omega_ss", THREE_STATES, context, rollouts=2)
+    assert omega.settings["seed"] == 7 and omega.settings["rollouts"] == 2
+    assert make_start_strategy("omega_ss", THREE_STATES, context, omega=[1.0, 0.5, 0.0]).settings == {"clamp": 0.05}
+    assert make_start_strategy("uniform_ss", THREE_STATES, context).settings == {}
 
 
 @pytest.mark.parametrize("name", ["auxss", "goaldist_ss"])
@@ -369,19 +382,12 @@ def test_recorded_settings_rebuild_the_same_strategy(name):
     # what provenance.json records is enough to build the strategy again, whatever the defaults become
     given = STRATEGY_PARAMS[name]
     original = make_start_strategy(name, THREE_STATES, **given)
-    rebuilt = make_start_strategy(name, THREE_STATES, **strategy_settings(name, **given))
+    rebuilt = make_start_strategy(name, THREE_STATES, **original.settings)
     for _ in range(3):
         original.update(0, 40)
         rebuilt.update(0, 40)
     np.testing.assert_array_equal(original.weights, rebuilt.weights)
     assert original.state_dict() == rebuilt.state_dict()
-
-
-def test_strategy_settings_reject_what_make_start_strategy_rejects():
-    with pytest.raises(ValueError, match=r"sigmaa.*sigma"):
-        strategy_settings("auxss", sigmaa=0.1)
-    with pytest.raises(ValueError, match=r"'aux_ss'.*'auxss'"):
-        strategy_settings("aux_ss")
 
 
 @pytest.mark.parametrize("name, params, match", [

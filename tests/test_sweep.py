@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from conftest import metrics_without_wall_time
-from lava_bridge_mj.eval import cli, sweep
+from lava_bridge_mj.eval import arguments, cli, sweep
 from lava_bridge_mj.eval.sweep import Job, format_seeds, plan
 
 TINY = {"sac": {"hidden_sizes": [16, 16], "batch_size": 32, "buffer_size": 500, "learning_starts": 100},
@@ -69,7 +69,7 @@ def statuses(out):
 # --- the plan --------------------------------------------------------------------------------------
 def test_format_seeds_inverts_parse_seeds():
     for text in ("0", "0-24", "0,3,5-7", "2,1"):
-        assert format_seeds(cli.parse_seeds(text)) == text
+        assert format_seeds(arguments.parse_seeds(text)) == text
 
 
 @pytest.mark.parametrize("methods, demos, seeds, workers, per_job, expected", [

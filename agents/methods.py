@@ -1,0 +1,80 @@
+"""The training methods, each described once: its learner, its start strategy and how it uses the demos.
+
+The training loop (eval/runner.py) reads only these fields, so a new method is one `Method` entry in
+`METHODS` plus its algorithm's file. Importing this module loads no learner (and no torch):
+`Method.learner_class` imports the learner's module when a run builds it.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from typing import Any
+
+LEARNERS = {"sac": ("lava_bridge_mj.agents.sac", "SAC"), "bc": ("lava_bridge_mj.agents.offline", "BC"),
+            "iql": ("lava_bridge_mj.agents.offline", "IQL")}
+"""Learner name -> (module, class). The name is also the RunConfig section of its hyperparameters."""
+DEMO_USES = ("none", "hybrid", "offline", "guide")
+
+
+@dataclass(frozen=True)
+class Method:
+    """One training method of the CLI's --method."""
+
+    name: str
+    learner: str
+    """The learner it trains (a key of `LEARNERS`), with the RunConfig section of the same name."""
+    start: str
+    """The start strategy its training episodes start from (`make_start_strategy`'s name)."""
+    demos: str = "none"
+    """How it uses the demo transitions: "none"; "hybrid": every minibatch mixes them into the online
+    ones (HySAC, agents/hysac.py); "offline": they are all it learns from, a step is one gradient
+    update and no episode runs; "guide": an offline learner fitted to them acts first in each
+    episode (JSRL, agents/jsrl.py)."""
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        if self.learner not in LEARNERS or self.demos not in DEMO_USES:
+            raise ValueError(f"method {self.name!r}: learner must be one of {list(LEARNERS)} and demos one of "
+                             f"{DEMO_USES}, got {self.learner!r} and {self.demos!r}")
+
+    @property
+    def online(self) -> bool:
+        """True when it steps the env (every method but the offline ones)."""
+        return self.demos != "offline"
+
+    def learner_class(self) -> type:
+        return learner_class(self.learner)
+
+    def minibatch(self, online: Any, demos: Any, size: int, rng: Any, hybrid_fraction: float) -> dict:
+        """One seed's minibatch of `size` for an update: from the online replay buffer, the demo
+        transitions alone (offline) or both (hybrid, `hybrid_fraction` of it from the demos)."""
+        if self.demos == "offline":
+            return demos.sample(size, rng)
+        if self.demos == "hybrid":
+            from .hysac import hybrid_minibatch
+
+            return hybrid_minibatch(online, demos, size, hybrid_fraction, rng)
+        return online.sample(size, rng)
+
+
+def learner_class(name: str) -> type:
+    """The learner class called `name` in `LEARNERS` (SAC, BC or IQL), imported on use."""
+    module, attribute = LEARNERS[name]
+    return getattr(importlib.import_module(module), attribute)
+
+
+METHODS = {method.name: method for method in (
+    Method("sac", "sac", "p0", description="plain SAC from p0"),
+    Method("auxss", "sac", "auxss", description="the paper's episode-length start-state safety"),
+    Method("omega_ss", "sac", "omega_ss", description="random-policy Monte-Carlo safety"),
+    Method("uniform_ss", "sac", "uniform_ss", description="uniform over demo states"),
+    Method("goaldist_ss", "sac", "goaldist_ss", description="goal-distance weighted, flattening over time"),
+    Method("hysac", "sac", "p0", "hybrid", description="SAC from p0 whose minibatches are half demo transitions (HyQ)"),
+    Method("hysac_auxss", "sac", "auxss", "hybrid", description="both HySAC's replay and AuxSS's start states"),
+    Method("jsrl", "sac", "p0", "guide", description="a guide learned from the demos (IQL by default) acts first "
+                                                     "in each episode, for a horizon that shrinks as the learner succeeds"),
+    Method("bc", "bc", "p0", "offline", description="behaviour cloning"),
+    Method("iql", "iql", "p0", "offline", description="IQL"),
+)}
+"""Every training method by its CLI name."""

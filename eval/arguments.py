@@ -1,0 +1,102 @@
+"""What lava-bridge-bench's commands share (training, sweep, report, video): argument types with
+one-line usage errors (integers, seeds, seed lists), --config files, output paths, and SIGTERM
+handled like Ctrl-C. Light: no training code is imported."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import threading
+from collections import Counter
+from collections.abc import Sequence
+from pathlib import Path
+
+from lava_bridge_mj.eval.atomic import nearest_existing
+from lava_bridge_mj.eval.config import MAX_SEED
+
+
+def int_at_least(minimum: int, what: str, maximum: int | None = None):
+    """An argparse type: an integer >= minimum (and <= maximum), or a usage error naming the value."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+        if value < minimum or (maximum is not None and value > maximum):
+            raise argparse.ArgumentTypeError(f"expected {what}, got {value}")
+        return value
+    return parse
+
+
+positive_int = int_at_least(1, "a positive integer")
+seed = int_at_least(0, f"an integer seed in [0, {MAX_SEED}]", MAX_SEED)
+
+
+def parse_seeds(text: str) -> list[int]:
+    """'0-24', '3', '0,2,5-7' -> a list of distinct non-negative seeds, in the order given."""
+    seeds: list[int] = []
+    for part in text.split(","):
+        low, dash, high = part.strip().partition("-")
+        try:
+            first, last = int(low), int(high if dash else low)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected seeds like 0-24 or 0,3,5-7, got {text!r}") from None
+        if first < 0 or last < first or last > MAX_SEED:
+            raise argparse.ArgumentTypeError(f"expected a range of seeds low-high in [0, {MAX_SEED}], got {part.strip()!r}")
+        seeds.extend(range(first, last + 1))
+    repeated = sorted(s for s, n in Counter(seeds).items() if n > 1)
+    if repeated:
+        raise argparse.ArgumentTypeError(f"seeds must be distinct; repeated: {repeated}")
+    return seeds
+
+
+def format_seeds(seeds: Sequence[int]) -> str:
+    """[0, 1, 2, 5] -> '0-2,5', the inverse of parse_seeds."""
+    parts, start = [], 0
+    for i in range(1, len(seeds) + 1):
+        if i == len(seeds) or seeds[i] != seeds[i - 1] + 1:
+            first, last = seeds[start], seeds[i - 1]
+            parts.append(str(first) if first == last else f"{first}-{last}")
+            start = i
+    return ",".join(parts)
+
+
+def read_config_file(path: Path | None, parser: argparse.ArgumentParser) -> dict:
+    """The RunConfig fields of a --config JSON file ({} without one); a usage error if it is unreadable."""
+    if path is None:
+        return {}
+    try:
+        values = json.loads(path.read_text())
+    except OSError as error:
+        parser.error(f"--config {path} cannot be read: {error.strerror}")
+    except ValueError as error:
+        parser.error(f"--config {path} is not valid JSON: {error}")
+    if not isinstance(values, dict):
+        parser.error(f"--config {path} must hold a JSON object of RunConfig fields")
+    return values
+
+
+def directory(text: str) -> Path:
+    """An argparse type: a directory path; an empty one (which would mean the current directory) is refused."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"expected a directory, got {text!r}")
+    return Path(text)
+
+
+def check_writable(out: Path, parser: argparse.ArgumentParser) -> None:
+    if out.exists() and not out.is_dir():
+        parser.error(f"--out {out} exists and is not a directory")
+    existing = nearest_existing(out)
+    if not existing.is_dir() or not os.access(existing, os.W_OK | os.X_OK):
+        parser.error(f"--out {out} cannot be written: {existing} is not a writable directory")
+
+
+def raise_keyboard_interrupt(signum, frame):
+    """A signal handler: SIGTERM stops a command the way Ctrl-C does (its cleanup runs, nothing half-written)."""
+    raise KeyboardInterrupt
+
+
+def in_main_thread() -> bool:
+    """Signal handlers can only be set from the main thread (not where a test or Ray calls main)."""
+    return threading.current_thread() is threading.main_thread()

@@ -1,0 +1,155 @@
+"""A training run's configuration: `RunConfig`, its validation, and the names of the methods.
+
+Torch-free, so that the CLI's help, a sweep's planning and a report read and check configurations
+without loading the learners.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from typing import Any
+
+import numpy as np
+
+import lava_bridge_mj
+from lava_bridge_mj.agents.checks import check_integer, check_number
+from lava_bridge_mj.agents.configs import BCConfig, IQLConfig, JSRLConfig, SACConfig
+from lava_bridge_mj.agents.methods import METHODS as METHOD_SPECS
+from lava_bridge_mj.agents.start_strategies import STRATEGY_PARAMS
+
+METHODS = tuple(METHOD_SPECS)
+"""Training methods, by their CLI names (agents/methods.py describes each)."""
+AGENT_CONFIGS = {"sac": SACConfig, "bc": BCConfig, "iql": IQLConfig, "jsrl": JSRLConfig}
+"""RunConfig's nested hyperparameter sections."""
+MAX_SEED = 2**32 - 1
+"""Seeds are 32-bit: what every RNG here (numpy's, torch's, MuJoCo's) takes without overflow."""
+MAX_EVAL_EPISODES = 1000
+"""Evaluation keeps one env per episode; 1,000 already gives a success rate to within about 0.03."""
+
+@dataclasses.dataclass
+class RunConfig:
+    """One training run. Defaults: a quick run that shows learning on a 2-core laptop in minutes;
+    `steps=300_000` with `eval_every=10_000` is the paper's protocol."""
+
+    method: str = "auxss"
+    """Training method: sac (start from p0), SAC with a start strategy (auxss, omega_ss, uniform_ss,
+    goaldist_ss), HySAC, whose minibatches mix in the demo transitions (hysac from p0, hysac_auxss), JSRL
+    (a guide learned from the demos acts first in each episode), or an offline method trained on the demo
+    transitions alone (bc, iql)."""
+    env_id: str = lava_bridge_mj.ENV_ID
+    """The task, an id of `lava_bridge_mj.TASKS`: its layout, its p0 and ood starts, and its shipped demos."""
+    seed: int = 0
+    """Seeds the networks, the env, the start strategy, the replay sampling and the demo subset."""
+    steps: int = 50_000
+    """Online environment steps (offline methods: gradient steps on the demo transitions)."""
+    demos: int = 500
+    """Which shipped demo set the candidate start states (and HySAC's offline transitions) come from (500 or 7500)."""
+    demo_subset: int = 150
+    """Candidate start states: a seeded random subset of this many demo states (the paper's 150),
+    the same set for every start strategy so that they differ only in how they sample it."""
+    hybrid_fraction: float = 0.5
+    """HySAC only: the share of every minibatch drawn from the demo transitions, which stay in their own
+    buffer for all of training (HyQ's half and half); the rest comes from the online replay buffer."""
+    eval_every: int = 5_000
+    """Evaluate (and checkpoint) every this many steps."""
+    eval_episodes: int = 50
+    """Evaluation episodes per start distribution (p0 and ood), with fixed seeds."""
+    strategy: dict[str, Any] = dataclasses.field(default_factory=dict)
+    """Extra keyword parameters of the start strategy (e.g. {"sigma": 0.3} for auxss)."""
+    sac: SACConfig = dataclasses.field(default_factory=SACConfig)
+    """SAC hyperparameters (sac, the start-strategy methods, hysac, hysac_auxss)."""
+    bc: BCConfig = dataclasses.field(default_factory=BCConfig)
+    """Behaviour cloning hyperparameters (bc)."""
+    iql: IQLConfig = dataclasses.field(default_factory=IQLConfig)
+    """IQL hyperparameters (iql, and jsrl's guide when it is IQL)."""
+    jsrl: JSRLConfig = dataclasses.field(default_factory=JSRLConfig)
+    """JSRL's guide and curriculum (jsrl); its learner uses `sac`."""
+    env: dict[str, Any] = dataclasses.field(default_factory=dict)
+    """Keyword arguments of the env, for training and evaluation alike (e.g. {"lava_reward": 0.0} or
+    Layout fields such as {"bridge_width": 0.4}); the candidate states still come from the shipped demos."""
+
+    def __post_init__(self) -> None:
+        for name, section in AGENT_CONFIGS.items():
+            if isinstance(getattr(self, name), dict):
+                try:
+                    setattr(self, name, section(**getattr(self, name)))
+                except ValueError as error:  # name the section: "sac.lr must be ..."
+                    raise ValueError(f"{name}.{error}") from None
+        if self.method not in METHOD_SPECS:
+            raise ValueError(f"unknown method {self.method!r}; expected one of {METHODS}")
+        for name, minimum in (("steps", 1), ("eval_every", 1), ("demo_subset", 1)):
+            setattr(self, name, check_integer(name, getattr(self, name), minimum))
+        self.seed = check_integer("seed", self.seed, 0, MAX_SEED)
+        self.eval_episodes = check_integer("eval_episodes", self.eval_episodes, 1, MAX_EVAL_EPISODES)
+        self.hybrid_fraction = check_number("hybrid_fraction", self.hybrid_fraction, 0, 1, low_inclusive=True)
+        if self.demos not in (500, 7500):
+            raise ValueError(f"demos must be 500 or 7500, got {self.demos!r}")
+        if not isinstance(self.env_id, str) or self.env_id not in lava_bridge_mj.TASKS:
+            raise ValueError(f"unknown env_id {self.env_id!r}; expected one of {list(lava_bridge_mj.TASKS)}")
+        if not isinstance(self.env, dict):
+            raise ValueError(f"env must be a dict of LavaBridgeEnv keyword arguments, got {self.env!r}")
+        try:
+            self.make_env().close()  # refuse bad env arguments before any work
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"env: {error}") from None
+
+    def env_kwargs(self) -> dict[str, Any]:
+        """LavaBridgeEnv's (and LavaBridgeVectorEnv's) keyword arguments: the task's layout, then `env`."""
+        return {"layout": lava_bridge_mj.task_layout(self.env_id), **self.env}
+
+    def make_env(self, **kwargs: Any) -> lava_bridge_mj.LavaBridgeEnv:
+        """The run's task as a single env (`kwargs` e.g. render_mode)."""
+        return lava_bridge_mj.LavaBridgeEnv(**self.env_kwargs(), **kwargs)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON values (tuples become lists), as written to config.json."""
+        return json.loads(json.dumps(dataclasses.asdict(self)))
+
+    def continues(self, saved: Any) -> bool:
+        """True when `saved` (a config.json's values) is this run up to its step budget: `steps` is
+        the one field a resume may change, because nothing but the loop's end depends on it, so a
+        finished run extended to more steps equals a run trained to them in one go."""
+        # a config.json from before env_id existed was LavaBridge-v0's, the only task then
+        return isinstance(saved, dict) and {"env_id": lava_bridge_mj.ENV_ID, **saved, "steps": self.steps} == self.to_dict()
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any], source: str = "config") -> "RunConfig":
+        """A RunConfig from plain values (e.g. a JSON file); ValueError naming unknown or bad entries."""
+        if not isinstance(values, dict):
+            raise ValueError(f"{source} must be a JSON object of RunConfig fields, got {type(values).__name__}")
+        _check_keys(values, cls, source)
+        for name, section in AGENT_CONFIGS.items():
+            fields = values.get(name, {})
+            if not isinstance(fields, dict):
+                raise ValueError(f"{source}: '{name}' must be an object of {section.__name__} fields, got {fields!r}")
+            _check_keys(fields, section, f"{source}: '{name}'")
+        strategy = values.get("strategy", {})
+        spec = METHOD_SPECS.get(values.get("method", cls.method))
+        name = spec.start if spec is not None else None
+        if not isinstance(strategy, dict):
+            raise ValueError(f"{source}: 'strategy' must be an object of start-strategy parameters")
+        accepted = [p for p in STRATEGY_PARAMS.get(name, ()) if p != "env"]  # the runner supplies env
+        unknown = sorted(set(strategy) - set(accepted))
+        if unknown:
+            raise ValueError(f"{source}: unknown parameters {unknown} for start strategy {name!r}; "
+                             f"it accepts {accepted or 'none'}")
+        try:
+            return cls(**values)
+        except (TypeError, ValueError) as error:  # e.g. a hyperparameter of the wrong type or range
+            raise ValueError(f"{source}: {error}") from None
+
+
+def _check_keys(values: dict[str, Any], dataclass: type, source: str) -> None:
+    known = [field.name for field in dataclasses.fields(dataclass)]
+    unknown = sorted(set(values) - set(known))
+    if unknown:
+        raise ValueError(f"{source}: unknown fields {unknown}; expected some of {known}")
+
+
+def candidate_states(config: RunConfig) -> np.ndarray:
+    """The start strategy's candidate states: a seeded subset of the demo set's observations."""
+    states = lava_bridge_mj.load_demos(config.demos, env_id=config.env_id)["observations"]
+    rng = np.random.default_rng([config.seed, 2024])  # its own stream: independent of training draws
+    size = min(config.demo_subset, len(states))
+    return states[np.sort(rng.choice(len(states), size=size, replace=False))]
