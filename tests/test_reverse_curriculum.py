@@ -11,7 +11,7 @@ import lava_bridge_mj
 from lava_bridge_mj.agents import ReverseCurriculumSS, StartStateWrapper, goal_reaching_demos, make_start_strategy
 from lava_bridge_mj.agents.reverse_curriculum import forward_scores, rank_weights
 from lava_bridge_mj.agents.start_state_wrapper import StartSelector
-from lava_bridge_mj.agents.start_strategies import NO_STATE, strategy_settings
+from lava_bridge_mj.agents.start_strategies import NO_STATE
 
 # Two demonstrations: A with 4 states (indices 0-3), B with 3 (indices 4-6). Row i is (i, 0, 0, 0).
 STATES = np.stack([np.arange(7.0), np.zeros(7), np.zeros(7), np.zeros(7)], axis=1)
@@ -286,7 +286,7 @@ def test_goal_reaching_demos_drop_the_cut_last_episode():
 def test_make_start_strategy_builds_it_and_settings_record_its_defaults():
     rc = make_start_strategy("reverse_ss", STATES, episode_ids=EPISODE_IDS, per_demo_buffer_size=2)
     assert isinstance(rc, ReverseCurriculumSS) and rc.per_demo_buffer_size == 2
-    assert strategy_settings("reverse_ss", episode_ids=EPISODE_IDS, reverse_step_size=4) == {
+    assert make_start_strategy("reverse_ss", STATES, episode_ids=EPISODE_IDS, reverse_step_size=4).settings == {
         "per_demo_buffer_size": 3, "reverse_step_size": 4, "demo_sampler": "uniform",
         "demo_horizon_to_max_steps_ratio": 3.0, "max_steps_min": 8}
 
