@@ -15,6 +15,7 @@ LEARNERS = {"sac": ("lava_bridge_mj.agents.sac", "SAC"), "bc": ("lava_bridge_mj.
             "iql": ("lava_bridge_mj.agents.offline", "IQL")}
 """Learner name -> (module, class). The name is also the RunConfig section of its hyperparameters."""
 DEMO_USES = ("none", "hybrid", "offline", "guide")
+CANDIDATE_SETS = ("subset", "demo_episodes")
 
 
 @dataclass(frozen=True)
@@ -32,11 +33,19 @@ class Method:
     update and no episode runs; "guide": an offline learner fitted to them acts first in each
     episode (JSRL, agents/jsrl.py)."""
     description: str = ""
+    candidates: str = "subset"
+    """The demo states its start strategy chooses among: "subset", a seeded random subset of
+    `demo_subset` of them, the same for every method that uses it; "demo_episodes", every demo episode
+    that reaches the goal, whole and in time order, with each state's episode id (the reverse
+    curriculum walks each episode back from its end; eval/seed_run.py `candidate_states`)."""
 
     def __post_init__(self) -> None:
         if self.learner not in LEARNERS or self.demos not in DEMO_USES:
             raise ValueError(f"method {self.name!r}: learner must be one of {list(LEARNERS)} and demos one of "
                              f"{DEMO_USES}, got {self.learner!r} and {self.demos!r}")
+        if self.candidates not in CANDIDATE_SETS:
+            raise ValueError(f"method {self.name!r}: candidates must be one of {CANDIDATE_SETS}, "
+                             f"got {self.candidates!r}")
 
     @property
     def online(self) -> bool:
@@ -70,6 +79,9 @@ METHODS = {method.name: method for method in (
     Method("omega_ss", "sac", "omega_ss", description="random-policy Monte-Carlo safety"),
     Method("uniform_ss", "sac", "uniform_ss", description="uniform over demo states"),
     Method("goaldist_ss", "sac", "goaldist_ss", description="goal-distance weighted, flattening over time"),
+    Method("reverse_ss", "sac", "reverse_ss", candidates="demo_episodes",
+           description="RFCL's per-demonstration reverse curriculum over the whole goal-reaching demo episodes, "
+                       "with its shortened time limits"),
     Method("hysac", "sac", "p0", "hybrid", description="SAC from p0 whose minibatches are half demo transitions (HyQ)"),
     Method("hysac_auxss", "sac", "auxss", "hybrid", description="both HySAC's replay and AuxSS's start states"),
     Method("jsrl", "sac", "p0", "guide", description="a guide learned from the demos (IQL by default) acts first "

@@ -434,17 +434,20 @@ class StrategyContext:
     """What a run supplies to its start strategy, the same for every strategy: `probe`, an env of the
     run's task that Omega-SS's safety rollouts use (left at an arbitrary state), the task's `goal`
     (x, y) that GoalDist-SS weighs by, the run's `seed` (Omega-SS's rollouts) and `horizon`, the env's
-    step limit (AuxSS's H). A strategy takes from it only what its parameters leave unset."""
+    step limit (AuxSS's H), and `episode_ids`, the demo episode of each candidate state where the
+    candidates are whole demo episodes (the reverse curriculum's). A strategy takes from it only what
+    its parameters leave unset."""
 
     probe: Any = None
     goal: Sequence[float] | None = None
     seed: int = 0
     horizon: int | None = None
+    episode_ids: Any = None
 
     @classmethod
-    def from_env(cls, probe: Any, seed: int, horizon: int) -> "StrategyContext":
+    def from_env(cls, probe: Any, seed: int, horizon: int, episode_ids: Any = None) -> "StrategyContext":
         """The context of a run of `probe`'s task (a LavaBridgeEnv: its layout's goal)."""
-        return cls(probe=probe, goal=tuple(probe.layout.goal), seed=seed, horizon=horizon)
+        return cls(probe=probe, goal=tuple(probe.layout.goal), seed=seed, horizon=horizon, episode_ids=episode_ids)
 
     def fill(self, name: str, params: dict[str, Any]) -> dict[str, Any]:
         """`params` of strategy `name` with what the run supplies added where they leave it unset."""
@@ -456,6 +459,8 @@ class StrategyContext:
             params.setdefault("goal", self.goal)
         if name == "auxss" and self.horizon is not None:
             params.setdefault("horizon", self.horizon)
+        if name == "reverse_ss" and self.episode_ids is not None:
+            params.setdefault("episode_ids", self.episode_ids)
         return params
 
 
@@ -466,7 +471,7 @@ def make_start_strategy(name: str, states: Any = None, context: StrategyContext 
 
     `states` is the (n, 4) candidate set (ignored, and may be None, for p0). Parameters are the
     classes' keyword arguments (`STRATEGY_PARAMS` lists them); `context` supplies the run's probe
-    env, goal, seed and horizon where they are unset. omega_ss takes exactly one of `omega=`
+    env, goal, seed, horizon and demo episode ids where they are unset. omega_ss takes exactly one of `omega=`
     (precomputed, e.g. cached) or `env=` (estimated here by `estimate_random_policy_safety` with `k`,
     `rollouts`, `seed`). goaldist_ss needs `goal=(x, y)`, reverse_ss `episode_ids=`
     (agents/reverse_curriculum.py). Unknown names or parameters raise

@@ -34,7 +34,7 @@ class RunConfig:
 
     method: str = "auxss"
     """Training method: sac (start from p0), SAC with a start strategy (auxss, omega_ss, uniform_ss,
-    goaldist_ss), HySAC, whose minibatches mix in the demo transitions (hysac from p0, hysac_auxss), JSRL
+    goaldist_ss, reverse_ss), HySAC, whose minibatches mix in the demo transitions (hysac from p0, hysac_auxss), JSRL
     (a guide learned from the demos acts first in each episode), or an offline method trained on the demo
     transitions alone (bc, iql)."""
     env_id: str = lava_bridge_mj.ENV_ID
@@ -47,7 +47,8 @@ class RunConfig:
     """Which shipped demo set the candidate start states (and HySAC's offline transitions) come from (500 or 7500)."""
     demo_subset: int = 150
     """Candidate start states: a seeded random subset of this many demo states (the paper's 150),
-    the same set for every start strategy so that they differ only in how they sample it."""
+    the same set for every start strategy so that they differ only in how they sample it (reverse_ss
+    starts from whole demo episodes instead)."""
     hybrid_fraction: float = 0.5
     """HySAC only: the share of every minibatch drawn from the demo transitions, which stay in their own
     buffer for all of training (HyQ's half and half); the rest comes from the online replay buffer."""
@@ -129,7 +130,8 @@ class RunConfig:
         name = spec.start if spec is not None else None
         if not isinstance(strategy, dict):
             raise ValueError(f"{source}: 'strategy' must be an object of start-strategy parameters")
-        accepted = [p for p in STRATEGY_PARAMS.get(name, ()) if p != "env"]  # the runner supplies env
+        # the runner supplies env and episode_ids (the candidates' own)
+        accepted = [p for p in STRATEGY_PARAMS.get(name, ()) if p not in ("env", "episode_ids")]
         unknown = sorted(set(strategy) - set(accepted))
         if unknown:
             raise ValueError(f"{source}: unknown parameters {unknown} for start strategy {name!r}; "

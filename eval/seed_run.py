@@ -15,6 +15,7 @@ import numpy as np
 import lava_bridge_mj
 from lava_bridge_mj.agents.methods import METHODS
 from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
+from lava_bridge_mj.agents.reverse_curriculum import goal_reaching_demos
 from lava_bridge_mj.agents.start_state_wrapper import StartSelector
 from lava_bridge_mj.agents.start_strategies import StrategyContext, make_start_strategy
 from lava_bridge_mj.eval.config import RunConfig
@@ -22,25 +23,34 @@ from lava_bridge_mj.eval.run_files import CHECKPOINT_VERSION, POLICIES, save_che
 from lava_bridge_mj.vector import LavaBridgeVectorEnv
 
 
-def candidate_states(config: RunConfig) -> np.ndarray:
-    """The start strategy's candidate states: a seeded subset of the demo set's observations."""
-    states = lava_bridge_mj.load_demos(config.demos, env_id=config.env_id)["observations"]
+def candidate_states(config: RunConfig) -> tuple[np.ndarray, np.ndarray | None]:
+    """The start strategy's candidate states and, for whole demo episodes, each one's episode id.
+
+    Its method's `candidates` decide: "subset", a seeded subset of `demo_subset` of the demo set's
+    observations (episode ids None); "demo_episodes", every goal-reaching demo episode, whole and
+    in time order (`demo_subset` is unused)."""
+    demos = lava_bridge_mj.load_demos(config.demos, env_id=config.env_id)
+    if METHODS[config.method].candidates == "demo_episodes":
+        return goal_reaching_demos(demos)
+    states = demos["observations"]
     rng = np.random.default_rng([config.seed, 2024])  # its own stream: independent of training draws
     size = min(config.demo_subset, len(states))
-    return states[np.sort(rng.choice(len(states), size=size, replace=False))]
+    return states[np.sort(rng.choice(len(states), size=size, replace=False))], None
 
 
 class SeedRun:
     """Seed `config.seed` of a batch: sub-env `index` of the batch's `envs`, its start strategy
     (built once from the method's strategy name, the candidate states and the run's context: `probe`,
-    an env of the task, and the env's step limit), replay buffer, RNGs, metrics and directory."""
+    an env of the task, the env's step limit and the candidates' demo episode ids), replay buffer,
+    RNGs, metrics and directory. A strategy's `time_limit` shortens the episodes it starts, as
+    `StartStateWrapper` does."""
 
     def __init__(self, config: RunConfig, out_dir: str | Path, probe: lava_bridge_mj.LavaBridgeEnv,
                  envs: LavaBridgeVectorEnv, index: int, demos: ReplayBuffer | None = None):
         self.config, self.dir = config, Path(out_dir)
         self.method = METHODS[config.method]
-        self.states = candidate_states(config)
-        context = StrategyContext.from_env(probe, config.seed, envs.max_episode_steps)
+        self.states, episode_ids = candidate_states(config)
+        context = StrategyContext.from_env(probe, config.seed, envs.max_episode_steps, episode_ids)
         start = self.method.start
         self.strategy = make_start_strategy(start, None if start == "p0" else self.states, context, **config.strategy)
         self.envs, self.index = envs, index
@@ -70,6 +80,8 @@ class SeedRun:
         self.buffer.add(self.obs, action, reward, next_obs, terminated)
         self.episode_return += reward
         self.obs = next_obs
+        # the strategy's own step limit for this episode (RFCL's), where shorter than the env's
+        truncated = truncated or (not terminated and self.selector.reaches_time_limit())
         ended = terminated or truncated
         self.selector.step(ended, success)
         if ended:
