@@ -81,9 +81,10 @@ def test_every_method_writes_a_complete_run_directory(trained, method):
     assert sorted(p.name for p in (tmp_path / "policies").iterdir()) == ["step_100.pt", "step_200.pt", "step_300.pt"]
     weights = np.load(tmp_path / "start_weights.npz")
     assert weights["steps"].tolist() == [100, 200, 300]
-    expected_states = 0 if METHOD_SPECS[method].start == "p0" else 20
+    candidates = 20 if METHOD_SPECS[method].candidates == "subset" else len(run.seed_runs[0].states)
+    expected_states = 0 if METHOD_SPECS[method].start == "p0" else candidates
     assert weights["probabilities"].shape == (3, expected_states)
-    assert weights["states"].shape == (20, 4)
+    assert weights["states"].shape == (candidates, 4)
     assert run.step == 300
 
 
