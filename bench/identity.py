@@ -29,8 +29,6 @@ import numpy as np
 from single_seed_speed import importable_tree  # bench/ is on sys.path when this script runs
 
 ROOT = Path(__file__).resolve().parent.parent
-METHODS = ("sac", "auxss", "omega_ss", "uniform_ss", "goaldist_ss", "hysac", "hysac_auxss", "jsrl", "bc", "iql")
-"""Every method of the CLI (checked against the working tree's list at start)."""
 DEMOS_7500 = ("hysac", "iql")
 """Methods run on the 7,500-transition demo set; the others use the 500 set."""
 SEEDS = "0-1"
@@ -98,6 +96,13 @@ def compare(a: Path, b: Path) -> dict[str, str]:
     return verdict
 
 
+def tree_methods(path: Path) -> list[str]:
+    """The CLI's methods in the tree importable from `path` (the methods both trees have are compared)."""
+    listed = subprocess.run([sys.executable, "-c", "from lava_bridge_mj.eval import cli; print(','.join(cli.METHODS))"],
+                            env={**os.environ, "PYTHONPATH": str(path)}, capture_output=True, text=True, check=True)
+    return listed.stdout.strip().split(",")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--ref", help="the reference commit (default: the merge-base of HEAD and main)")
@@ -129,18 +134,15 @@ def main(argv: list[str] | None = None) -> int:
                  "ref": importable_tree(ref_tree, Path(scratch) / "path-ref")}
         config = work / "tiny.json"
         config.write_text(json.dumps(TINY))
-        check = subprocess.run([sys.executable, "-c", "from lava_bridge_mj.eval import cli; print(','.join(cli.METHODS))"],
-                               env={**os.environ, "PYTHONPATH": str(paths["working"])}, capture_output=True, text=True)
-        if check.stdout.strip() != ",".join(METHODS):
-            print(f"the working tree's methods are {check.stdout.strip() or check.stderr.strip()!r}, "
-                  f"this script's {','.join(METHODS)}: update METHODS", file=sys.stderr)
-            return 1
+        methods = {name: tree_methods(path) for name, path in paths.items()}
+        new = [method for method in methods["working"] if method not in methods["ref"]]
+        compared = [method for method in methods["working"] if method in methods["ref"]]
         for name in paths:
             (work / name).mkdir()
         failures, seconds = [], {}
         with ThreadPoolExecutor(args.jobs) as pool:
             futures = [pool.submit(train, name, path, method, work / name / method, config, args.steps)
-                       for method in METHODS for name, path in paths.items()]
+                       for method in compared for name, path in paths.items()]
             for future in futures:
                 try:
                     name, method, took = future.result()
@@ -151,7 +153,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"FAILED: {failure}")
         identical = not failures
         print(f"{'method':<12} {'demos':>5}  {'metrics.csv':<12} {'episodes.csv':<12} {'start_weights':<13}  seconds (working/ref)")
-        for method in METHODS:
+        for method in compared:
             a, b = work / "working" / method, work / "ref" / method
             if (("working", method) not in seconds) or (("ref", method) not in seconds):
                 print(f"{method:<12} run failed")
@@ -161,6 +163,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{method:<12} {7500 if method in DEMOS_7500 else 500:>5}  {verdict['metrics.csv']:<12} "
                   f"{verdict['episodes.csv']:<12} {verdict['start_weights.npz']:<13}  "
                   f"{seconds['working', method]:.1f}/{seconds['ref', method]:.1f}")
+        for method in new:
+            print(f"{method:<12} new since the ref: nothing to compare with")
     print("bit-identical" if identical else "NOT bit-identical")
     return 0 if identical else 1
 

@@ -10,8 +10,6 @@ import dataclasses
 import json
 from typing import Any
 
-import numpy as np
-
 import lava_bridge_mj
 from lava_bridge_mj.agents.checks import check_integer, check_number
 from lava_bridge_mj.agents.configs import BCConfig, IQLConfig, JSRLConfig, SACConfig
@@ -147,11 +145,3 @@ def _check_keys(values: dict[str, Any], dataclass: type, source: str) -> None:
     unknown = sorted(set(values) - set(known))
     if unknown:
         raise ValueError(f"{source}: unknown fields {unknown}; expected some of {known}")
-
-
-def candidate_states(config: RunConfig) -> np.ndarray:
-    """The start strategy's candidate states: a seeded subset of the demo set's observations."""
-    states = lava_bridge_mj.load_demos(config.demos, env_id=config.env_id)["observations"]
-    rng = np.random.default_rng([config.seed, 2024])  # its own stream: independent of training draws
-    size = min(config.demo_subset, len(states))
-    return states[np.sort(rng.choice(len(states), size=size, replace=False))]
