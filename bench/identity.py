@@ -99,7 +99,8 @@ def compare(a: Path, b: Path) -> dict[str, str]:
 def tree_methods(path: Path) -> list[str]:
     """The CLI's methods in the tree importable from `path` (the methods both trees have are compared)."""
     listed = subprocess.run([sys.executable, "-c", "from lava_bridge_mj.eval import cli; print(','.join(cli.METHODS))"],
-                            env={**os.environ, "PYTHONPATH": str(path)}, capture_output=True, text=True, check=True)
+                            env={**os.environ, "PYTHONPATH": str(path)}, capture_output=True, text=True, check=True,
+                            cwd=path)  # not this checkout, whose own package `python -c` would import first
     return listed.stdout.strip().split(",")
 
 

@@ -25,7 +25,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import lava_bridge_mj  # noqa: E402
 from lava_bridge_mj.agents.methods import METHODS as METHOD_SPECS  # noqa: E402
 from lava_bridge_mj.eval import arguments  # noqa: E402
-from lava_bridge_mj.eval.config import METHODS, RunConfig  # noqa: E402
+from lava_bridge_mj.eval.config import METHODS, RunConfig, check_batch_fits  # noqa: E402
 from lava_bridge_mj.eval.run_files import run_files  # noqa: E402
 
 DEFAULTS = RunConfig()
@@ -112,6 +112,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     config = _config_from(args, parser)
     seeds = args.seeds or [config.seed]
+    try:  # before anything per seed: a million seeds' directories take minutes to check
+        check_batch_fits(config, len(seeds))
+    except ValueError as error:
+        parser.error(str(error))
     if args.seeds:
         root = args.out or Path("runs") / config.method
         outs = [root / f"seed{seed}" for seed in seeds]
@@ -128,12 +132,8 @@ def main(argv: list[str] | None = None) -> int:
 
     import torch  # after argument checks, so --help and usage errors are instant
 
-    from lava_bridge_mj.eval.runner import RunInterrupted, check_batch_fits, train
+    from lava_bridge_mj.eval.runner import RunInterrupted, train
 
-    try:
-        check_batch_fits(config, len(seeds))
-    except ValueError as error:
-        parser.error(str(error))
     torch.set_num_threads(args.threads)
 
     try:

@@ -11,7 +11,7 @@ import json
 from typing import Any
 
 import lava_bridge_mj
-from lava_bridge_mj.agents.checks import check_integer, check_number
+from lava_bridge_mj.agents.checks import check_fits_in_memory, check_integer, check_number
 from lava_bridge_mj.agents.configs import BCConfig, IQLConfig, JSRLConfig, SACConfig
 from lava_bridge_mj.agents.methods import METHODS as METHOD_SPECS
 from lava_bridge_mj.agents.start_strategies import STRATEGY_PARAMS
@@ -145,3 +145,17 @@ def _check_keys(values: dict[str, Any], dataclass: type, source: str) -> None:
     unknown = sorted(set(values) - set(known))
     if unknown:
         raise ValueError(f"{source}: unknown fields {unknown}; expected some of {known}")
+
+
+def trained_configs(config: RunConfig) -> list:
+    """The hyperparameter sections whose networks and buffers the method allocates (JSRL: its learner's
+    and its guide's)."""
+    method = METHOD_SPECS[config.method]
+    guide = [getattr(config, config.jsrl.guide)] if method.demos == "guide" else []
+    return [getattr(config, method.learner), *guide]
+
+
+def check_batch_fits(config: RunConfig, seeds: int) -> None:
+    """ValueError unless `seeds` seeds of `config` fit in memory: checked before anything is built per
+    seed, so an impossible batch fails at once instead of minutes later (or in MemoryError)."""
+    check_fits_in_memory(*trained_configs(config), seeds=seeds, obs_dim=4, act_dim=2)

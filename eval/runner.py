@@ -31,12 +31,11 @@ import numpy as np
 from tqdm.auto import tqdm
 
 import lava_bridge_mj
-from lava_bridge_mj.agents.checks import check_fits_in_memory
 from lava_bridge_mj.agents.jsrl import JSRLGuide
 from lava_bridge_mj.agents.methods import METHODS, learner_class
 from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
 from lava_bridge_mj.agents.seed_batch import stack_batches
-from lava_bridge_mj.eval.config import RunConfig
+from lava_bridge_mj.eval.config import RunConfig, check_batch_fits
 from lava_bridge_mj.eval.evaluate import evaluate
 from lava_bridge_mj.eval.provenance import code_provenance
 from lava_bridge_mj.eval.run_files import (CHECKPOINTS, DamagedFileError, RunDirectoryError, append_provenance,
@@ -66,20 +65,6 @@ def _finite_policy(policy):
             raise PolicyDiverged(f"its evaluation policy's actions are not finite ({actions.reshape(-1, 2)[0]})")
         return actions
     return act
-
-
-def trained_configs(config: RunConfig) -> list:
-    """The hyperparameter sections whose networks and buffers the method allocates (JSRL: its learner's
-    and its guide's)."""
-    method = METHODS[config.method]
-    guide = [getattr(config, config.jsrl.guide)] if method.demos == "guide" else []
-    return [getattr(config, method.learner), *guide]
-
-
-def check_batch_fits(config: RunConfig, seeds: int) -> None:
-    """ValueError unless `seeds` seeds of `config` fit in memory: checked before anything is built per
-    seed, so an impossible batch fails at once instead of minutes later (or in MemoryError)."""
-    check_fits_in_memory(*trained_configs(config), seeds=seeds, obs_dim=4, act_dim=2)
 
 
 def make_agent(config: RunConfig, seeds: Sequence[int], learner: str | None = None):

@@ -496,9 +496,14 @@ def test_a_diverged_seed_stops_alone_and_the_batch_trains_on(tmp_path, capsys, w
     assert (dirs[0] / "final.pt").exists() and not (dirs[1] / "final.pt").exists()
 
 
-def test_a_batch_or_buffer_that_cannot_fit_in_memory_is_refused_at_once(tmp_path, capsys):
+def test_a_batch_or_buffer_that_cannot_fit_in_memory_is_refused_at_once(tmp_path, capsys, monkeypatch):
     """A million seeds, a 10^12-transition buffer or 100,000-unit layers used to run for minutes or end
-    in MemoryError."""
+    in MemoryError; the CLI refuses them before it checks any seed's run directory (a million of those
+    took minutes)."""
+    checked = []
+    check_writable = cli.arguments.check_writable
+    monkeypatch.setattr(cli.arguments, "check_writable", lambda out, parser: (checked.append(out),
+                                                                              check_writable(out, parser)))
     buffer, layers = tmp_path / "buffer.json", tmp_path / "layers.json"
     buffer.write_text(json.dumps({"sac": {"buffer_size": 10**12}}))
     layers.write_text(json.dumps({"sac": {"hidden_sizes": [100000, 100000]}}))
@@ -512,6 +517,7 @@ def test_a_batch_or_buffer_that_cannot_fit_in_memory_is_refused_at_once(tmp_path
         assert exit_info.value.code == 2
         assert "does not fit in memory" in capsys.readouterr().err
         assert not (tmp_path / "run").exists()
+        assert checked == []
 
 
 def test_env_selects_the_task_its_demos_and_its_starts(tmp_path, capsys):
