@@ -6,12 +6,10 @@ import json
 
 import numpy as np
 import pytest
-import torch
 
 import lava_bridge_mj
 
-from conftest import interrupted_copy, metrics_without_wall_time
-from test_runner import tiny_config
+from test_runner import resume_from_mid_episode_checkpoint, tiny_config
 
 from lava_bridge_mj.agents.reverse_curriculum import ReverseCurriculumSS, goal_reaching_demos
 from lava_bridge_mj.eval import cli
@@ -68,18 +66,7 @@ def test_episodes_are_truncated_at_the_curriculum_time_limit(reverse_run):
 
 def test_a_stopped_then_resumed_run_equals_the_uninterrupted_one(reverse_run, tmp_path):
     config, full_dir, full = reverse_run
-    checkpoint = torch.load(full_dir / "checkpoint.prev.pt", weights_only=False)
-    assert 0 < checkpoint["step"] < config.steps, "the test needs a checkpoint from the middle of the run"
-    assert checkpoint["wrapper"]["episode_length"] > 0, "the test needs a checkpoint from the middle of an episode"
-
-    resumed_dir = tmp_path / "resumed"
-    interrupted_copy(full_dir, resumed_dir)
-    resumed = train(config, resumed_dir, resume=True, progress=False)
-
-    assert metrics_without_wall_time(resumed_dir) == metrics_without_wall_time(full_dir)
-    assert (resumed_dir / "episodes.csv").read_text() == (full_dir / "episodes.csv").read_text()
-    for name, tensor in full.agent.actor.state_dict().items():
-        assert torch.equal(tensor, resumed.agent.actor.state_dict()[name]), name
+    resumed = resume_from_mid_episode_checkpoint(config, full_dir, full, tmp_path / "resumed")
     assert resumed.strategy.state_dict() == full.strategy.state_dict()
 
 

@@ -128,12 +128,18 @@ def test_same_seed_same_metrics(finished_run, tmp_path):
 def test_resume_from_checkpoint_equals_uninterrupted_run(trained, tmp_path, method):
     config = tiny_config(method)
     full_dir, full = trained(config)
+    resumed = resume_from_mid_episode_checkpoint(config, full_dir, full, tmp_path / "resumed")
+    np.testing.assert_array_equal(full.strategy.weights, resumed.strategy.weights)
+
+
+def resume_from_mid_episode_checkpoint(config, full_dir, full, resumed_dir):
+    """Resume a copy of the finished run `full_dir` cut back to its mid-episode checkpoint.prev.pt; assert
+    that its metrics, episode log and actor equal the uninterrupted run's; return the resumed run."""
     checkpoint = torch.load(full_dir / "checkpoint.prev.pt", weights_only=False)
     assert 0 < checkpoint["step"] < config.steps, "the test needs a checkpoint from the middle of the run"
     assert checkpoint["wrapper"]["episode_length"] > 0, "the test needs a checkpoint from the middle of an episode"
 
     # An interrupted run: only the files as they were at that checkpoint, plus a stale row past it.
-    resumed_dir = tmp_path / "resumed"
     interrupted_copy(full_dir, resumed_dir)
     resumed = train(config, resumed_dir, resume=True, progress=False)
 
@@ -141,7 +147,7 @@ def test_resume_from_checkpoint_equals_uninterrupted_run(trained, tmp_path, meth
     assert (resumed_dir / "episodes.csv").read_text() == (full_dir / "episodes.csv").read_text()
     for name, tensor in full.agent.actor.state_dict().items():
         assert torch.equal(tensor, resumed.agent.actor.state_dict()[name]), name
-    np.testing.assert_array_equal(full.strategy.weights, resumed.strategy.weights)
+    return resumed
 
 
 def test_resume_refuses_a_checkpoint_of_another_configuration(finished_run, tmp_path):
