@@ -8,16 +8,15 @@ import numpy as np
 import pytest
 
 import lava_bridge_mj  # noqa: F401  (registers LavaBridge-v0)
+from lava_bridge_mj.agents.auxss import AuxSS
+from lava_bridge_mj.agents.goaldist_ss import GoalDistSS
+from lava_bridge_mj.agents.omega_ss import OmegaSS, estimate_random_policy_safety
 from lava_bridge_mj.agents.start_state_wrapper import StartSelector, StartStateWrapper
 from lava_bridge_mj.agents.start_strategies import (
     NO_STATE,
     STRATEGY_NAMES,
-    AuxSS,
-    GoalDistSS,
-    OmegaSS,
     P0Start,
     UniformSS,
-    estimate_random_policy_safety,
     StrategyContext,
     make_start_strategy,
 )
