@@ -3,19 +3,18 @@
 The learners (`SAC`, `ReplayBuffer`) load torch, so they are imported on first use: the
 configurations and start strategies stay light."""
 
+from lava_bridge_mj.agents.auxss import AuxSS
 from lava_bridge_mj.agents.configs import SACConfig
+from lava_bridge_mj.agents.goaldist_ss import GoalDistSS
+from lava_bridge_mj.agents.omega_ss import OmegaSS, estimate_random_policy_safety
 from lava_bridge_mj.agents.reverse_curriculum import ReverseCurriculumSS, goal_reaching_demos
 from lava_bridge_mj.agents.start_state_wrapper import StartStateWrapper
 from lava_bridge_mj.agents.start_strategies import (
     NO_STATE,
     STRATEGY_NAMES,
-    AuxSS,
-    GoalDistSS,
-    OmegaSS,
     P0Start,
     StartStrategy,
     UniformSS,
-    estimate_random_policy_safety,
     make_start_strategy,
 )
 

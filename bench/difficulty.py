@@ -26,7 +26,7 @@ import gymnasium
 import numpy as np
 
 import lava_bridge_mj
-from lava_bridge_mj.agents.start_strategies import OmegaSS, estimate_random_policy_safety
+from lava_bridge_mj.agents.omega_ss import OmegaSS, estimate_random_policy_safety
 
 CANDIDATES = 150
 """The runner's default candidate subset (RunConfig.demo_subset)."""

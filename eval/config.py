@@ -14,7 +14,7 @@ import lava_bridge_mj
 from lava_bridge_mj.agents.checks import check_fits_in_memory, check_integer, check_number
 from lava_bridge_mj.agents.configs import BCConfig, IQLConfig, JSRLConfig, SACConfig
 from lava_bridge_mj.agents.methods import METHODS as METHOD_SPECS
-from lava_bridge_mj.agents.start_strategies import STRATEGY_PARAMS
+from lava_bridge_mj.agents.start_strategies import check_strategy_params
 
 METHODS = tuple(METHOD_SPECS)
 """Training methods, by their CLI names (agents/methods.py describes each)."""
@@ -24,6 +24,10 @@ MAX_SEED = 2**32 - 1
 """Seeds are 32-bit: what every RNG here (numpy's, torch's, MuJoCo's) takes without overflow."""
 MAX_EVAL_EPISODES = 1000
 """Evaluation keeps one env per episode; 1,000 already gives a success rate to within about 0.03."""
+RUNNER_STRATEGY_PARAMS = ("env", "episode_ids")
+"""Start-strategy parameters that the runner supplies and a config cannot: the probe env of Omega-SS's
+rollouts and the candidates' own demo episode ids."""
+
 
 @dataclasses.dataclass
 class RunConfig:
@@ -124,17 +128,12 @@ class RunConfig:
                 raise ValueError(f"{source}: '{name}' must be an object of {section.__name__} fields, got {fields!r}")
             _check_keys(fields, section, f"{source}: '{name}'")
         strategy = values.get("strategy", {})
-        spec = METHOD_SPECS.get(values.get("method", cls.method))
-        name = spec.start if spec is not None else None
         if not isinstance(strategy, dict):
             raise ValueError(f"{source}: 'strategy' must be an object of start-strategy parameters")
-        # the runner supplies env and episode_ids (the candidates' own)
-        accepted = [p for p in STRATEGY_PARAMS.get(name, ()) if p not in ("env", "episode_ids")]
-        unknown = sorted(set(strategy) - set(accepted))
-        if unknown:
-            raise ValueError(f"{source}: unknown parameters {unknown} for start strategy {name!r}; "
-                             f"it accepts {accepted or 'none'}")
+        spec = METHOD_SPECS.get(values.get("method", cls.method))
         try:
+            if spec is not None:  # an unknown method is named below
+                check_strategy_params(spec.start, strategy, supplied=RUNNER_STRATEGY_PARAMS)
             return cls(**values)
         except (TypeError, ValueError) as error:  # e.g. a hyperparameter of the wrong type or range
             raise ValueError(f"{source}: {error}") from None

@@ -15,7 +15,7 @@ import lava_bridge_mj
 from conftest import flip_a_data_bit, interrupted_copy, metrics_without_wall_time
 
 from lava_bridge_mj.agents.sac import SACConfig
-from lava_bridge_mj.agents.start_strategies import GoalDistSS
+from lava_bridge_mj.agents.goaldist_ss import GoalDistSS
 from lava_bridge_mj.eval import cli
 from lava_bridge_mj.eval.provenance import git_state
 from lava_bridge_mj.agents.methods import METHODS as METHOD_SPECS

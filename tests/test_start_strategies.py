@@ -8,19 +8,20 @@ import numpy as np
 import pytest
 
 import lava_bridge_mj  # noqa: F401  (registers LavaBridge-v0)
+from lava_bridge_mj.agents.auxss import AuxSS
+from lava_bridge_mj.agents.goaldist_ss import GoalDistSS
+from lava_bridge_mj.agents.methods import METHODS as METHOD_SPECS
+from lava_bridge_mj.agents.omega_ss import OmegaSS, estimate_random_policy_safety
 from lava_bridge_mj.agents.start_state_wrapper import StartSelector, StartStateWrapper
 from lava_bridge_mj.agents.start_strategies import (
     NO_STATE,
     STRATEGY_NAMES,
-    AuxSS,
-    GoalDistSS,
-    OmegaSS,
     P0Start,
     UniformSS,
-    estimate_random_policy_safety,
     StrategyContext,
     make_start_strategy,
 )
+from lava_bridge_mj.eval.config import RunConfig
 
 # Three states for hand computation: S1 is 0.3 m from S0 in x, S2 differs from S0 only in vy (0.6 m/s).
 # With sigma = 0.3 (2 sigma^2 = 0.18): lam(S0, S1) = exp(-0.09 / 0.18) = exp(-0.5),
@@ -408,6 +409,29 @@ def test_recorded_settings_rebuild_the_same_strategy(name):
 def test_make_start_strategy_rejects_bad_names_and_params(name, params, match):
     with pytest.raises(ValueError, match=match):
         make_start_strategy(name, THREE_STATES, **params)
+
+
+@pytest.mark.parametrize("method", ["auxss", "goaldist_ss", "uniform_ss", "sac"])
+def test_a_config_and_the_api_refuse_an_unknown_parameter_with_one_message(method):
+    start = METHOD_SPECS[method].start
+    with pytest.raises(ValueError) as from_api:
+        make_start_strategy(start, THREE_STATES, sigmaa=0.2)
+    with pytest.raises(ValueError) as from_config:
+        RunConfig.from_dict({"method": method, "strategy": {"sigmaa": 0.2}})
+    assert str(from_api.value).startswith(f"unknown parameters ['sigmaa'] for start strategy {start!r}; it accepts")
+    assert str(from_config.value) == f"config: {from_api.value}"
+
+
+def test_a_config_cannot_set_what_the_runner_supplies():
+    with pytest.raises(ValueError) as error:
+        RunConfig.from_dict({"method": "omega_ss", "strategy": {"env": "LavaBridge-v0"}})
+    assert str(error.value) == ("config: unknown parameters ['env'] for start strategy 'omega_ss'; "
+                                "it accepts ['omega', 'k', 'rollouts', 'seed', 'clamp']")
+
+
+def test_a_config_of_an_unknown_method_names_the_method_not_its_strategy_parameters():
+    with pytest.raises(ValueError, match=r"^config: unknown method 'auxs'; expected one of"):
+        RunConfig.from_dict({"method": "auxs", "strategy": {"sigma": 0.2}})
 
 
 # --- StartStateWrapper ------------------------------------------------------------------------
