@@ -14,12 +14,13 @@ from lava_bridge_mj.agents.start_strategies import (
     STRATEGY_NAMES,
     P0Start,
     StartStrategy,
+    StrategyContext,
     UniformSS,
     make_start_strategy,
 )
 
 __all__ = ["NO_STATE", "STRATEGY_NAMES", "SAC", "AuxSS", "GoalDistSS", "OmegaSS", "P0Start", "ReplayBuffer",
-           "ReverseCurriculumSS", "SACConfig", "StartStateWrapper", "StartStrategy", "UniformSS",
+           "ReverseCurriculumSS", "SACConfig", "StartStateWrapper", "StartStrategy", "StrategyContext", "UniformSS",
            "estimate_random_policy_safety", "goal_reaching_demos", "make_start_strategy"]
 
 

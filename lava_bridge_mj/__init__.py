@@ -3,6 +3,10 @@
 Importing the package registers `LavaBridge-v0` and the other tasks of the suite (`TASKS`) with
 gymnasium. Without importing it first, `gymnasium.make("lava_bridge_mj:LavaBridge-v0")` imports and
 registers them in one go.
+
+Training from Python: `lava_bridge_mj.train(lava_bridge_mj.RunConfig(method="auxss"), "runs/auxss")`
+(eval/runner.py) returns the finished run; both load on first use, so importing the package for the
+env alone loads no torch.
 """
 
 import os
@@ -44,5 +48,14 @@ def register_envs() -> None:
 register_envs()
 
 __all__ = ["ENV_ID", "MAX_EPISODE_STEPS", "TASKS", "TASK_DOCS", "Disc", "Layout", "LavaBridgeEnv", "LavaBridgeTask",
-           "LavaBridgeVectorEnv", "START_NAMES", "ScriptedExpert", "load_demos", "register_envs", "start_distribution",
-           "task_layout"]
+           "LavaBridgeVectorEnv", "RunConfig", "START_NAMES", "ScriptedExpert", "load_demos", "register_envs",
+           "start_distribution", "task_layout", "train"]
+
+
+def __getattr__(name: str):
+    # the training API loads on first use: an env user's `import lava_bridge_mj` stays light (no torch)
+    if name in ("RunConfig", "train"):
+        from lava_bridge_mj import eval as training
+
+        return getattr(training, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

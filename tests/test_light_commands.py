@@ -31,3 +31,12 @@ def test_the_configuration_layer_imports_no_learner():
             "print('torch' in sys.modules)")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert result.stdout.strip() == "False", result.stdout + result.stderr
+
+
+def test_the_package_api_loads_torch_only_when_training_is_asked_for():
+    code = ("import sys, lava_bridge_mj; config = lava_bridge_mj.RunConfig(method='omega_ss'); "
+            "print('torch' in sys.modules); "
+            "from lava_bridge_mj.eval import runner; "
+            "print(lava_bridge_mj.train is runner.train, lava_bridge_mj.RunConfig is type(config))")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert result.stdout.split() == ["False", "True", "True"], result.stdout + result.stderr
