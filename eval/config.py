@@ -79,7 +79,7 @@ class RunConfig:
                     setattr(self, name, section(**getattr(self, name)))
                 except ValueError as error:  # name the section: "sac.lr must be ..."
                     raise ValueError(f"{name}.{error}") from None
-        if self.method not in METHOD_SPECS:
+        if not isinstance(self.method, str) or self.method not in METHOD_SPECS:
             raise ValueError(f"unknown method {self.method!r}; expected one of {METHODS}")
         for name, minimum in (("steps", 1), ("eval_every", 1), ("demo_subset", 1)):
             setattr(self, name, check_integer(name, getattr(self, name), minimum))
@@ -130,7 +130,8 @@ class RunConfig:
         strategy = values.get("strategy", {})
         if not isinstance(strategy, dict):
             raise ValueError(f"{source}: 'strategy' must be an object of start-strategy parameters")
-        spec = METHOD_SPECS.get(values.get("method", cls.method))
+        method = values.get("method", cls.method)
+        spec = METHOD_SPECS.get(method) if isinstance(method, str) else None
         try:
             if spec is not None:  # an unknown method is named below
                 check_strategy_params(spec.start, strategy, supplied=RUNNER_STRATEGY_PARAMS)

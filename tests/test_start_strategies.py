@@ -2,6 +2,7 @@
 
 import json
 import math
+import re
 
 import gymnasium
 import numpy as np
@@ -432,6 +433,12 @@ def test_a_config_cannot_set_what_the_runner_supplies():
 def test_a_config_of_an_unknown_method_names_the_method_not_its_strategy_parameters():
     with pytest.raises(ValueError, match=r"^config: unknown method 'auxs'; expected one of"):
         RunConfig.from_dict({"method": "auxs", "strategy": {"sigma": 0.2}})
+
+
+@pytest.mark.parametrize("method", [["auxss"], {"name": "auxss"}, 3])
+def test_a_config_whose_method_is_not_a_name_is_refused_naming_it(method):
+    with pytest.raises(ValueError, match=rf"^config: unknown method {re.escape(repr(method))}; expected one of"):
+        RunConfig.from_dict({"method": method})
 
 
 # --- StartStateWrapper ------------------------------------------------------------------------
