@@ -182,7 +182,7 @@ STRATEGY_PARAMS: dict[str, tuple[str, ...]] = {
               "timeout_weight"),
     "omega_ss": ("omega", "env", "k", "rollouts", "seed", "clamp"),
     "uniform_ss": (),
-    "goaldist_ss": ("goal", "temperature", "temperature_growth", "max_temperature"),
+    "goaldist_ss": ("goal", "temperature", "temperature_growth", "max_temperature", "schedule", "budget"),
     "reverse_ss": ("episode_ids", "per_demo_buffer_size", "reverse_step_size", "demo_sampler",
                    "demo_horizon_to_max_steps_ratio", "max_steps_min", "forward_states"),
 }
@@ -195,20 +195,24 @@ class StrategyContext:
     """What a run supplies to its start strategy, the same for every strategy: `probe`, an env of the
     run's task that Omega-SS's safety rollouts use (left at an arbitrary state), the task's `goal`
     (x, y) that GoalDist-SS weighs by, the run's `seed` (Omega-SS's rollouts) and `horizon`, the env's
-    step limit (AuxSS's H), and `episode_ids`, the demo episode of each candidate state where the
-    candidates are whole demo episodes (the reverse curriculum's). A strategy takes from it only what
-    its parameters leave unset."""
+    step limit (AuxSS's H), `episode_ids`, the demo episode of each candidate state where the
+    candidates are whole demo episodes (the reverse curriculum's), and `budget`, the run's training
+    steps (GoalDist-SS's schedule "budget"). A strategy takes from it only what its parameters leave
+    unset."""
 
     probe: Any = None
     goal: Sequence[float] | None = None
     seed: int = 0
     horizon: int | None = None
     episode_ids: Any = None
+    budget: int | None = None
 
     @classmethod
-    def from_env(cls, probe: Any, seed: int, horizon: int, episode_ids: Any = None) -> "StrategyContext":
+    def from_env(cls, probe: Any, seed: int, horizon: int, episode_ids: Any = None,
+                 budget: int | None = None) -> "StrategyContext":
         """The context of a run of `probe`'s task (a LavaBridgeEnv: its layout's goal)."""
-        return cls(probe=probe, goal=tuple(probe.layout.goal), seed=seed, horizon=horizon, episode_ids=episode_ids)
+        return cls(probe=probe, goal=tuple(probe.layout.goal), seed=seed, horizon=horizon, episode_ids=episode_ids,
+                   budget=budget)
 
     def fill(self, name: str, params: dict[str, Any]) -> dict[str, Any]:
         """`params` of strategy `name` with what the run supplies added where they leave it unset."""
@@ -218,6 +222,8 @@ class StrategyContext:
             params.setdefault("env", self.probe)
         if name == "goaldist_ss" and self.goal is not None:
             params.setdefault("goal", self.goal)
+        if name == "goaldist_ss" and params.get("schedule") == "budget" and self.budget is not None:
+            params.setdefault("budget", self.budget)
         if name == "auxss" and self.horizon is not None:
             params.setdefault("horizon", self.horizon)
         if name == "reverse_ss" and self.episode_ids is not None:

@@ -112,9 +112,21 @@ class RunConfig:
     def continues(self, saved: Any) -> bool:
         """True when `saved` (a config.json's values) is this run up to its step budget: `steps` is
         the one field a resume may change, because nothing but the loop's end depends on it, so a
-        finished run extended to more steps equals a run trained to them in one go."""
+        finished run extended to more steps equals a run trained to them in one go (except where
+        `budget_tied`: then `steps` must match too)."""
         # a config.json from before env_id existed was LavaBridge-v0's, the only task then
-        return isinstance(saved, dict) and {"env_id": lava_bridge_mj.ENV_ID, **saved, "steps": self.steps} == self.to_dict()
+        if not isinstance(saved, dict):
+            return False
+        steps = saved.get("steps") if self.budget_tied else self.steps
+        return {"env_id": lava_bridge_mj.ENV_ID, **saved, "steps": steps} == self.to_dict()
+
+    @property
+    def budget_tied(self) -> bool:
+        """True when more than the loop's end depends on `steps`: GoalDist-SS's schedule "budget"
+        spreads its temperature over the run's steps (unless the config sets its `budget`), so such a
+        run cannot be extended to a larger budget."""
+        return (METHOD_SPECS[self.method].start == "goaldist_ss" and self.strategy.get("schedule") == "budget"
+                and "budget" not in self.strategy)
 
     @classmethod
     def from_dict(cls, values: dict[str, Any], source: str = "config") -> "RunConfig":

@@ -128,8 +128,10 @@ def check_run_directory(config: Any, directory: Path, resume: bool, overwrite: b
     except DamagedFileError as error:
         raise RunDirectoryError(f"{error}; not resuming into it") from None
     if not config.continues(existing):
+        steps = ("the same --steps too: its GoalDist-SS temperature schedule is spread over its budget"
+                 if config.budget_tied else "--steps may change")
         raise RunDirectoryError(f"{directory} holds a run with another configuration; resume it "
-                                "with the same options (--steps may change), or choose another directory")
+                                f"with the same options ({steps}), or choose another directory")
     read_provenance(directory)  # refuse a damaged record before training changes anything
 
 

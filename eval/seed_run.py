@@ -50,7 +50,8 @@ class SeedRun:
         self.config, self.dir = config, Path(out_dir)
         self.method = METHODS[config.method]
         self.states, episode_ids = candidate_states(config)
-        context = StrategyContext.from_env(probe, config.seed, envs.max_episode_steps, episode_ids)
+        context = StrategyContext.from_env(probe, config.seed, envs.max_episode_steps, episode_ids,
+                                           budget=config.steps)
         start = self.method.start
         self.strategy = make_start_strategy(start, None if start == "p0" else self.states, context, **config.strategy)
         self.envs, self.index = envs, index

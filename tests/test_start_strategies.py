@@ -1,5 +1,6 @@
 """Start-state strategies and StartStateWrapper: hand-computed updates, sampling, persistence, resets."""
 
+import dataclasses
 import json
 import math
 import re
@@ -287,6 +288,71 @@ def test_goaldist_temperature_starts_the_schedule_and_max_temperature_ends_it():
         goaldist.update(0, 10)
     with pytest.raises(ValueError, match=r"^max_temperature=1.0 must be >= temperature=2.0$"):
         GoalDistSS(states, goal=(0.0, 0.0), temperature=2.0, max_temperature=1.0)
+
+
+def test_goaldist_budget_schedule_spreads_the_temperature_over_the_training_steps():
+    # T = 0.5 * (50 / 0.5) ** min(steps / 1000, 1): 0.5 at 0 steps, 5 at 500, 50 from 1000 on
+    distances = np.array([0.0, 1.0, 3.0])
+    states = np.stack([-distances, np.zeros(3), np.zeros(3), np.zeros(3)], axis=1)
+    goaldist = GoalDistSS(states, goal=(0.0, 0.0), schedule="budget", budget=1000)
+    for length, temperature in ((200, 0.5), (300, 0.5 * 100 ** 0.2), (400, 5.0), (600, 0.5 * 100 ** 0.9),
+                                (10, 50.0), (None, 50.0)):
+        assert goaldist.temperature == pytest.approx(temperature, rel=1e-12)
+        np.testing.assert_allclose(goaldist.weights, np.exp(-distances / temperature), rtol=1e-12)
+        if length is not None:
+            goaldist.update(1, length)
+    assert (goaldist.episodes, goaldist.steps) == (5, 1510)
+    # the episode count alone does not move it: one long episode is as far as many short ones
+    one_long = GoalDistSS(states, goal=(0.0, 0.0), schedule="budget", budget=1000)
+    one_long.update(0, 500)
+    assert one_long.temperature == pytest.approx(5.0, rel=1e-12)
+
+
+def test_goaldist_budget_schedule_round_trips_its_step_count():
+    states = np.stack([-np.arange(3.0), np.zeros(3), np.zeros(3), np.zeros(3)], axis=1)
+    goaldist = GoalDistSS(states, goal=(0.0, 0.0), schedule="budget", budget=100)
+    goaldist.update(0, 30)
+    goaldist.update(2, 20)
+    restored = GoalDistSS(states, goal=(0.0, 0.0), schedule="budget", budget=100)
+    restored.load_state_dict(json.loads(json.dumps(goaldist.state_dict())))
+    assert (restored.episodes, restored.steps) == (2, 50)
+    np.testing.assert_array_equal(restored.weights, goaldist.weights)
+
+
+@pytest.mark.parametrize("params, message", [
+    (dict(schedule="budget"), r"budget= goes with schedule='budget'.*got schedule='budget' and budget=None"),
+    (dict(budget=1000), r"budget= goes with schedule='budget'.*got schedule='episodes' and budget=1000"),
+    (dict(schedule="steps"), r"^schedule must be one of \('episodes', 'budget'\), got 'steps'$"),
+    (dict(schedule="budget", budget=0), r"budget"),
+])
+def test_goaldist_schedule_and_budget_are_checked(params, message):
+    with pytest.raises(ValueError, match=message):
+        GoalDistSS(THREE_STATES, goal=(0.0, 0.0), **params)
+
+
+def test_a_run_supplies_its_steps_as_the_budget_of_goaldist_budget_schedule():
+    context = StrategyContext(goal=(1.5, 2.0), budget=2000)
+    budget = make_start_strategy("goaldist_ss", THREE_STATES, context, schedule="budget")
+    assert budget.budget == 2000 and budget.settings["budget"] == 2000 and budget.settings["schedule"] == "budget"
+    assert make_start_strategy("goaldist_ss", THREE_STATES, context, schedule="budget", budget=50).budget == 50
+    episodes = make_start_strategy("goaldist_ss", THREE_STATES, context)  # the budget is not the episodes' business
+    assert episodes.budget is None and episodes.settings["schedule"] == "episodes"
+
+
+def test_a_budget_tied_run_cannot_be_extended_to_more_steps(tmp_path):
+    from lava_bridge_mj.eval.run_files import RunDirectoryError, check_run_directory, write_config
+
+    tied = RunConfig(method="goaldist_ss", steps=2000, strategy={"schedule": "budget"})
+    write_config(tmp_path, tied.to_dict())
+    assert tied.budget_tied and tied.continues(tied.to_dict())
+    longer = dataclasses.replace(tied, steps=4000)
+    assert not longer.continues(tied.to_dict())
+    with pytest.raises(RunDirectoryError, match=r"the same --steps too: its GoalDist-SS temperature schedule"):
+        check_run_directory(longer, tmp_path, resume=True, overwrite=False)
+    # the episode schedule, or a budget the config fixes itself, leaves steps free as for every other run
+    for strategy in ({}, {"schedule": "budget", "budget": 2000}):
+        free = RunConfig(method="goaldist_ss", steps=2000, strategy=strategy)
+        assert not free.budget_tied and dataclasses.replace(free, steps=4000).continues(free.to_dict())
 
 
 # --- persistence ------------------------------------------------------------------------------
