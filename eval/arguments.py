@@ -77,6 +77,37 @@ def read_config_file(path: Path | None, parser: argparse.ArgumentParser) -> dict
     return values
 
 
+def setting(text: str) -> tuple[list[str], object]:
+    """A `--set KEY=VALUE` override: the dotted RunConfig field (`sac.lr`, `strategy.sigma`, `steps`)
+    and its value, read as JSON where it is JSON (numbers, true/false, null, lists, quoted strings)
+    and as a plain string otherwise (`strategy.schedule=budget`)."""
+    key, equals, value = text.partition("=")
+    path = key.strip().split(".")
+    if not equals or not all(path):
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE with a dotted RunConfig field, such as sac.lr=1e-3 "
+                                         f"or strategy.sigma=0.2, got {text!r}")
+    try:
+        return path, json.loads(value)
+    except ValueError:
+        return path, value
+
+
+def apply_settings(values: dict, settings: Sequence[tuple[list[str], object]] | None,
+                   parser: argparse.ArgumentParser) -> dict:
+    """`values` (a config file's fields) with each `--set` override written into it, later ones winning;
+    RunConfig.from_dict then checks the result like a config file."""
+    values = json.loads(json.dumps(values))  # a copy: the caller's dict stays as read
+    for path, value in settings or ():
+        section = values
+        for depth, name in enumerate(path[:-1]):
+            section = section.setdefault(name, {})
+            if not isinstance(section, dict):
+                parser.error(f"--set {'.'.join(path)}: {'.'.join(path[:depth + 1])} is a value, not a section "
+                             f"of fields")
+        section[path[-1]] = value
+    return values
+
+
 def directory(text: str) -> Path:
     """An argparse type: a directory path; an empty one (which would mean the current directory) is refused."""
     if not text.strip():

@@ -4,13 +4,18 @@
     lava-bridge-bench --method sac --steps 300000         # the paper's protocol for plain SAC
     lava-bridge-bench --method auxss --seeds 0-24         # 25 seeds trained together in one process
     lava-bridge-bench --method auxss --config my.json     # any RunConfig field, e.g. SAC sizes
+    lava-bridge-bench --method auxss --set sac.lr=1e-3 --set strategy.sigma=0.2   # one field at a time
     lava-bridge-bench sweep --methods auxss,sac --seeds 0-24 --demos 500,7500 --out runs/study
-    lava-bridge-bench report ... / video ...              # subcommands: SUBCOMMANDS below
+    lava-bridge-bench report ... / video ... / summary ... # the commands: COMMANDS below
+
+`train` is the command when none is named: `lava-bridge-bench --method auxss` is
+`lava-bridge-bench train --method auxss`.
 """
 
 from __future__ import annotations
 
 import argparse
+import difflib
 import os
 import shlex
 import sys
@@ -30,24 +35,29 @@ from lava_bridge_mj.eval.run_files import run_files  # noqa: E402
 
 DEFAULTS = RunConfig()
 TASK_IDS = tuple(lava_bridge_mj.TASKS)
-SUBCOMMANDS = {"report": "lava_bridge_mj.eval.report", "video": "lava_bridge_mj.eval.video",
-               "sweep": "lava_bridge_mj.eval.sweep"}
-"""`lava-bridge-bench NAME ...` runs module's main(rest of argv); without a name, the training command."""
+COMMANDS = {"train": "lava_bridge_mj.eval.cli", "sweep": "lava_bridge_mj.eval.sweep",
+            "report": "lava_bridge_mj.eval.report", "video": "lava_bridge_mj.eval.video",
+            "summary": "lava_bridge_mj.eval.summary"}
+"""`lava-bridge-bench NAME ...` runs the module's main(rest of argv); without a name, `train`."""
+COMMAND_HELP = {"train": "train one method, one seed or a batch of seeds (the default command)",
+                "sweep": "every method x demo set x seed, as batched jobs on local worker processes or Ray",
+                "report": "figures, tables and tests from a directory of runs",
+                "video": "an mp4 of a run's policy from p0 and ood",
+                "summary": "a markdown table of a directory of runs, with the start-room share of training"}
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(prog: str = "lava-bridge-bench") -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="lava-bridge-bench",
+        prog=prog,
         description="Train a method on a Lava Bridge task (SAC from a start-state distribution, a hybrid "
                     "or an offline baseline), evaluating the deterministic policy's success rate from "
                     "p0 (the MDP's starts) and ood (unseen starts) as it learns. Writes a run "
                     "directory with config.json, "
                     "metrics.csv, start_weights.npz, checkpoints and policy snapshots. "
                     "Ctrl-C (or SIGTERM) stops after writing a checkpoint; --resume continues.",
-        epilog=f"Subcommands, named first: lava-bridge-bench {{{','.join(SUBCOMMANDS)}}} ...; "
-               "`lava-bridge-bench NAME --help` describes each (report: figures and tables from a directory "
-               "of runs; video: an mp4 of a run's policy from p0 and ood; sweep: every method x demo set x "
-               "seed, as batched jobs on local worker processes or Ray).")
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="commands (lava-bridge-bench COMMAND --help describes each; without one, train):\n" + "\n".join(
+            f"  {name:<8} {text}" for name, text in COMMAND_HELP.items()))
     parser.add_argument("--method", required=True, choices=METHODS,
                         help="; ".join(f"{m.name}: {m.description}" + ("" if m.online else " (offline: --steps counts "
                                   "gradient steps on the demos)") for m in METHOD_SPECS.values()))
@@ -71,6 +81,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--config", type=Path,
                         help="JSON file of RunConfig fields, e.g. {\"sac\": {\"hidden_sizes\": [256, 256]}, "
                              "\"strategy\": {\"sigma\": 0.2}}; options given here override it")
+    parser.add_argument("--set", dest="settings", type=arguments.setting, action="append", metavar="KEY=VALUE",
+                        help="one RunConfig field by its dotted name, over --config: --set sac.lr=1e-3 "
+                             "--set strategy.sigma=0.2 --set sac.hidden_sizes=[256,256] (values read as "
+                             "JSON, else as text); checked like a config file")
     parser.add_argument("--out", type=arguments.directory, default=None,
                         help="run directory (default: runs/METHOD/seedSEED); with --seeds, the directory "
                              "that holds one seedS directory per seed (default: runs/METHOD)")
@@ -91,24 +105,30 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _config_from(args: argparse.Namespace, parser: argparse.ArgumentParser) -> RunConfig:
-    values = arguments.read_config_file(args.config, parser)
+    values = arguments.apply_settings(arguments.read_config_file(args.config, parser), args.settings, parser)
     values["method"] = args.method
     for name in ("env_id", "seed", "steps", "demos", "eval_every", "eval_episodes"):
         if getattr(args, name) is not None:
             values[name] = getattr(args, name)
     try:
-        return RunConfig.from_dict(values, source=f"--config {args.config}" if args.config else "options")
+        sources = [f"--config {args.config}"] * bool(args.config) + ["--set"] * bool(args.settings)
+        return RunConfig.from_dict(values, source=" / ".join(sources) or "options")
     except ValueError as error:
         parser.error(str(error))
 
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
-    if argv and argv[0] in SUBCOMMANDS:
+    prog = "lava-bridge-bench"
+    if argv and argv[0] == "train":
+        argv, prog = argv[1:], "lava-bridge-bench train"
+    elif argv and argv[0] in COMMANDS:
         import importlib
 
-        return importlib.import_module(SUBCOMMANDS[argv[0]]).main(argv[1:]) or 0
-    parser = build_parser()
+        return importlib.import_module(COMMANDS[argv[0]]).main(argv[1:]) or 0
+    elif argv and not argv[0].startswith("-"):
+        return unknown_command(argv[0])
+    parser = build_parser(prog)
     args = parser.parse_args(argv)
     config = _config_from(args, parser)
     seeds = args.seeds or [config.seed]
@@ -173,6 +193,15 @@ def main(argv: list[str] | None = None) -> int:
         finally:
             env.close()
     return 1 if run.diverged else 0
+
+
+def unknown_command(name: str) -> int:
+    """A usage error for `lava-bridge-bench NAME` with no command NAME, suggesting the nearest ones."""
+    close = difflib.get_close_matches(name, COMMANDS, n=2, cutoff=0.6)
+    hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+    print(f"usage: lava-bridge-bench [COMMAND] ...\nlava-bridge-bench: error: unknown command {name!r}{hint} "
+          f"(commands: {', '.join(COMMANDS)}; without one, train: lava-bridge-bench --method ...)", file=sys.stderr)
+    return 2
 
 
 def resume_command(argv: Sequence[str]) -> str:

@@ -1,0 +1,84 @@
+"""The CLI's commands: `train` named or implied, a mistyped command answered with the nearest ones,
+and `--set` overrides of single RunConfig fields, checked like a config file."""
+
+import json
+
+import pytest
+
+from lava_bridge_mj.eval import cli
+
+
+def config_of(argv):
+    parser = cli.build_parser()
+    return cli._config_from(parser.parse_args(argv), parser)
+
+
+@pytest.mark.parametrize("typo, hint", [("reprot", "did you mean 'report'?"), ("vidoe", "did you mean 'video'?"),
+                                        ("sweeep", "did you mean 'sweep'?"), ("trian", "did you mean 'train'?"),
+                                        ("evaluate", "(commands: train, sweep, report, video, summary")])
+def test_a_mistyped_command_names_the_nearest_and_writes_nothing(typo, hint, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert cli.main([typo, "runs/x"]) == 2
+    err = capsys.readouterr().err
+    assert f"unknown command {typo!r}" in err and hint in err
+    assert "--method" not in err.splitlines()[0], "answered as a training command missing --method"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_train_named_or_implied_is_the_same_command(tmp_path, capsys):
+    for argv in (["--method", "sac", "--set", "sac.lrr=1"], ["train", "--method", "sac", "--set", "sac.lrr=1"]):
+        with pytest.raises(SystemExit) as stop:
+            cli.main(argv)
+        assert stop.value.code == 2
+        assert "--set: 'sac': unknown fields ['lrr']" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli.main(["train", "--help"])
+    assert capsys.readouterr().out.startswith("usage: lava-bridge-bench train")
+
+
+def test_set_overrides_single_fields_over_the_config_file_and_options_over_both(tmp_path):
+    path = tmp_path / "my.json"
+    path.write_text(json.dumps({"sac": {"lr": 1e-3, "batch_size": 64}, "steps": 7000}))
+    config = config_of(["--method", "auxss", "--config", str(path), "--set", "sac.lr=5e-4",
+                        "--set", "strategy.sigma=0.2", "--set", "sac.hidden_sizes=[32, 32]",
+                        "--set", "sac.critic_layer_norm=true", "--set", "steps=9000", "--steps", "11000"])
+    assert config.sac.lr == 5e-4 and config.sac.batch_size == 64  # the file's other field kept
+    assert config.sac.hidden_sizes == (32, 32) and config.sac.critic_layer_norm is True
+    assert config.strategy == {"sigma": 0.2}
+    assert config.steps == 11000  # a named option wins over --set and the file
+    assert json.loads(path.read_text())["sac"] == {"lr": 1e-3, "batch_size": 64}  # the file is only read
+    later = config_of(["--method", "goaldist_ss", "--set", "strategy.schedule=budget", "--set", "sac.lr=1e-3",
+                       "--set", "sac.lr=2e-3"])
+    assert later.strategy == {"schedule": "budget"} and later.sac.lr == 2e-3  # text values, the last one wins
+
+
+@pytest.mark.parametrize("setting, message", [
+    ("sac.lr=-1", "--set: sac.lr must be a finite number > 0, got -1"),
+    ("strategy.sigmaa=0.2", "--set: unknown parameters ['sigmaa'] for start strategy 'auxss'"),
+    ("sac", "argument --set: expected KEY=VALUE with a dotted RunConfig field"),
+    ("sac..lr=1", "argument --set: expected KEY=VALUE"),
+    ("steps=many", "--set: steps must be an integer >= 1, got 'many'"),
+])
+def test_a_bad_set_is_one_usage_line_and_writes_nothing(setting, message, tmp_path, capsys):
+    with pytest.raises(SystemExit) as stop:
+        cli.main(["--method", "auxss", "--set", setting, "--out", str(tmp_path / "run")])
+    assert stop.value.code == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
+
+
+def test_set_into_a_value_of_the_config_file_is_refused(tmp_path, capsys):
+    path = tmp_path / "my.json"
+    path.write_text(json.dumps({"steps": 7000}))
+    with pytest.raises(SystemExit):
+        config_of(["--method", "auxss", "--config", str(path), "--set", "steps.x=1"])
+    assert "--set steps.x: steps is a value, not a section of fields" in capsys.readouterr().err
+
+
+def test_a_run_trained_with_set_records_the_setting(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert cli.main(["train", "--method", "sac", "--set", "sac.hidden_sizes=[8, 8]", "--set", "sac.learning_starts=50",
+                     "--steps", "100", "--eval-every", "100", "--eval-episodes", "1", "--out", str(out),
+                     "--no-progress"]) == 0
+    saved = json.loads((out / "config.json").read_text())
+    assert saved["sac"]["hidden_sizes"] == [8, 8] and saved["sac"]["learning_starts"] == 50
