@@ -77,6 +77,11 @@ def read_config_file(path: Path | None, parser: argparse.ArgumentParser) -> dict
     return values
 
 
+def comma_list(text: str) -> tuple[str, ...]:
+    """`a,b` -> ("a", "b"), blanks dropped."""
+    return tuple(part.strip() for part in text.split(",") if part.strip())
+
+
 def setting(text: str) -> tuple[list[str], object]:
     """A `--set KEY=VALUE` override: the dotted RunConfig field (`sac.lr`, `strategy.sigma`, `steps`)
     and its value, read as JSON where it is JSON (numbers, true/false, null, lists, quoted strings)

@@ -29,7 +29,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import lava_bridge_mj  # noqa: E402
 from lava_bridge_mj.agents.methods import METHODS as METHOD_SPECS  # noqa: E402
-from lava_bridge_mj.eval import arguments  # noqa: E402
+from lava_bridge_mj.eval import arguments, tracking  # noqa: E402
 from lava_bridge_mj.eval.config import METHODS, RunConfig, check_batch_fits  # noqa: E402
 from lava_bridge_mj.eval.run_files import run_files  # noqa: E402
 
@@ -100,6 +100,14 @@ def build_parser(prog: str = "lava-bridge-bench") -> argparse.ArgumentParser:
                         help="torch CPU threads (default: 1). 1 avoids oversubscription when runs share cores "
                              "and keeps a seed's numbers independent of the seeds batched with it; 2 speeds "
                              "up a large --seeds batch on an otherwise idle 2-core machine")
+    parser.add_argument("--log", type=arguments.comma_list, default=(), metavar="SINKS",
+                        help="also log every evaluation live to tensorboard and/or wandb (comma-separated; "
+                             "each an optional extra): the metrics.csv scalars, the start strategy's "
+                             "probabilities as a histogram, the videos of --log-videos; metrics.csv stays "
+                             "the record")
+    parser.add_argument("--log-videos", action="store_true",
+                        help="render the policy's rollouts from p0 and ood at every evaluation to "
+                             "videos/step_N.mp4 (and to the --log sinks)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     return parser
 
@@ -131,6 +139,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser(prog)
     args = parser.parse_args(argv)
     config = _config_from(args, parser)
+    try:
+        tracking.check_sinks(args.log)
+    except ValueError as error:
+        parser.error(f"--log: {error}")
     seeds = args.seeds or [config.seed]
     try:  # before anything per seed: a million seeds' directories take minutes to check
         check_batch_fits(config, len(seeds))
@@ -158,7 +170,7 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         run = train(config, outs, seeds=seeds, resume=args.resume, overwrite=args.overwrite,
-                    progress=not args.no_progress)
+                    progress=not args.no_progress, log=args.log, log_videos=args.log_videos)
     except RunInterrupted as stop:
         print(f"lava-bridge-bench: {stop}; continue with: {resume_command(argv)}", file=sys.stderr)
         return 128 + stop.signum

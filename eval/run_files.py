@@ -12,6 +12,8 @@ A run directory holds:
     checkpoint.prev.pt  the one before it (a resume falls back to it when the latest is damaged)
     policies/step_N.pt  the actor's weights at every evaluation (for videos and later analysis)
     final.pt            the checkpoint at the end of training
+    videos/step_N.mp4   rollouts from p0 and ood at every evaluation (only with --log-videos)
+    tensorboard/, wandb/  live tracking sinks (only with --log; eval/tracking.py)
     .lock               held by the process writing the run
 The trainer, sweep and video read and write them through this module.
 
@@ -47,6 +49,10 @@ RUN_FILES = ("config.json", "provenance.json", "metrics.csv", "start_weights.npz
 """What a run directory holds besides policies/: what --overwrite removes."""
 POLICIES = "policies"
 """policies/step_N.pt: the actor's weights at every evaluation."""
+VIDEOS = "videos"
+"""videos/step_N.mp4: the policy's rollouts at every evaluation, when asked for."""
+RUN_FOLDERS = (POLICIES, VIDEOS, "tensorboard", "wandb")
+"""The folders of a run: any non-empty one makes a run directory; --overwrite removes them."""
 LOCK = ".lock"
 """Locked (flock) by the process writing the run; it holds that process's pid."""
 
@@ -75,9 +81,7 @@ def run_files(directory: str | Path) -> list[str]:
     directory, which nothing replaces without --overwrite."""
     directory = Path(directory)
     found = [name for name in RUN_FILES if (directory / name).exists()]
-    policies = directory / POLICIES
-    if policies.is_dir() and any(policies.iterdir()):
-        found.append(f"{POLICIES}/")
+    found += [f"{name}/" for name in RUN_FOLDERS if (directory / name).is_dir() and any((directory / name).iterdir())]
     return found
 
 
@@ -85,7 +89,8 @@ def remove_run(directory: Path) -> None:
     """Delete the run files of `directory` (what --overwrite replaces)."""
     for name in RUN_FILES:
         (directory / name).unlink(missing_ok=True)
-    shutil.rmtree(directory / POLICIES, ignore_errors=True)
+    for name in RUN_FOLDERS:
+        shutil.rmtree(directory / name, ignore_errors=True)
 
 
 def read_config(directory: Path) -> dict[str, Any] | None:

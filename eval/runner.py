@@ -38,10 +38,11 @@ from lava_bridge_mj.agents.seed_batch import stack_batches
 from lava_bridge_mj.eval.config import RunConfig, check_batch_fits
 from lava_bridge_mj.eval.evaluate import evaluate
 from lava_bridge_mj.eval.provenance import code_provenance
-from lava_bridge_mj.eval.run_files import (CHECKPOINTS, DamagedFileError, RunDirectoryError, append_provenance,
-                                           check_run_directory, locked, read_checkpoint, remove_run,
-                                           write_config)
+from lava_bridge_mj.eval.run_files import (CHECKPOINTS, VIDEOS, DamagedFileError, RunDirectoryError,
+                                           append_provenance, check_run_directory, locked, read_checkpoint,
+                                           remove_run, write_config)
 from lava_bridge_mj.eval.seed_run import SeedRun
+from lava_bridge_mj.eval.tracking import check_sinks, open_sink
 from lava_bridge_mj.vector import LavaBridgeVectorEnv
 
 
@@ -125,6 +126,8 @@ class Run:
         self.stop_signal: int | None = None  # set by SIGINT/SIGTERM: checkpoint and stop after this step
         self.active = np.ones(len(configs), dtype=bool)  # False: the seed diverged and stopped
         self.diverged: dict[int, int] = {}  # seed -> the step it stopped at
+        self.sinks: list[list] = [[] for _ in configs]  # each seed's tracking sinks (eval/tracking.py)
+        self.video_env = None  # renders each evaluation's rollouts, when tracking asks for videos
 
     # single-seed conveniences
     @property
@@ -271,7 +274,40 @@ class Run:
             actor = {name: tensor[i:i + 1].clone() for name, tensor in self.agent.actor.state_dict().items()}
             horizon = self.guide.curricula[i].horizon if self.guide is not None else float("nan")
             rows.append(seed_run.record(self.step, p0, ood, actor, self.elapsed, horizon))
+            if self.sinks[i] or self.video_env is not None:
+                self._track(i, rows[-1])
         return rows
+
+    @contextmanager
+    def tracking(self, sinks: Sequence[str], videos: bool = False):
+        """Each seed logs its evaluations to `sinks` (eval/tracking.py) while the block runs, with the
+        rollouts of each evaluation as videos/step_N.mp4 when `videos`; closed however the block ends."""
+        if videos:
+            import gymnasium
+
+            self.video_env = gymnasium.make(self.config.env_id, render_mode="rgb_array", **self.config.env)
+        label = f"{self.config.method} on {self.config.env_id}"
+        try:
+            for i, seed_run in enumerate(self.seed_runs):
+                self.sinks[i] = [open_sink(name, seed_run.dir, seed_run.config.to_dict(), label) for name in sinks]
+            yield
+        finally:
+            for sink in (sink for seed_sinks in self.sinks for sink in seed_sinks):
+                sink.close()
+            self.sinks = [[] for _ in self.seed_runs]
+            if self.video_env is not None:
+                self.video_env.close()
+                self.video_env = None
+
+    def _track(self, i: int, row: dict[str, float]) -> None:
+        seed_run, video = self.seed_runs[i], None
+        if self.video_env is not None:
+            from lava_bridge_mj.eval.video import record_rollouts
+
+            video = seed_run.dir / VIDEOS / f"step_{self.step}.mp4"
+            record_rollouts(self.video_env, self.policy(i), video, episodes_per_start=1)
+        for sink in self.sinks[i]:
+            sink.log(row, seed_run.strategy.probabilities, video)
 
     def policy(self, i: int = 0):
         """Seed i's deterministic policy: observations (n, 4) or (4,) -> actions (n, 2) or (2,)."""
@@ -335,7 +371,8 @@ class Run:
 
 
 def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seeds: Sequence[int] | None = None,
-          resume: bool = False, overwrite: bool = False, progress: bool = True) -> Run:
+          resume: bool = False, overwrite: bool = False, progress: bool = True, log: Sequence[str] = (),
+          log_videos: bool = False) -> Run:
     """Train `config` into `out_dir` and return the finished Run.
 
     With `seeds`, train those seeds of `config` together in one batch, seed seeds[i] into out_dir[i]
@@ -344,7 +381,12 @@ def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seed
     A directory holding another run's results is refused (RunDirectoryError) unless `resume` (continue
     from its checkpoints; the configuration must match) or `overwrite` (remove that run's files first).
     While training, every directory is locked against a second process.
+
+    `log` names live tracking sinks ("tensorboard", "wandb": eval/tracking.py) that each seed's
+    evaluations go to as well; `log_videos` writes each evaluation's rollouts from p0 and ood to
+    videos/step_N.mp4 (and to the sinks).
     """
+    log = check_sinks(log)
     check_batch_fits(config, 1 if seeds is None else len(seeds))
     if seeds is None:
         configs, dirs = [config], [Path(out_dir)]
@@ -378,5 +420,6 @@ def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seed
                 session = {"from_step": run.step, "to_step": config.steps, "started": started, "code": code,
                            "strategy": seed_run.strategy_settings}
                 append_provenance(seed_run.dir, session, resume)
-        run.train(progress=progress)
+        with run.tracking(log, log_videos):
+            run.train(progress=progress)
     return run
