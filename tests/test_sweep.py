@@ -1,6 +1,7 @@
 """`lava-bridge-bench sweep`: the job plan, and tiny real sweeps (local worker processes and Ray)
 that finish, skip what is finished, resume what is not, isolate failing jobs and refuse bad usage."""
 
+import dataclasses
 import json
 import os
 import shutil
@@ -13,8 +14,12 @@ from pathlib import Path
 import pytest
 
 from conftest import metrics_without_wall_time
-from lava_bridge_mj.eval import arguments, cli, sweep
-from lava_bridge_mj.eval.sweep import Job, format_seeds, plan
+from lava_bridge_mj.eval import arguments, cli, sweep, sweep_jobs, sweep_ray
+from lava_bridge_mj.eval.arguments import format_seeds
+from lava_bridge_mj.eval.config import RunConfig
+from lava_bridge_mj.eval.run_files import checkpoint_step, run_status, save_torch, write_config
+from lava_bridge_mj.eval.sweep import plan
+from lava_bridge_mj.eval.sweep_jobs import Job
 
 TINY = {"sac": {"hidden_sizes": [16, 16], "batch_size": 32, "buffer_size": 500, "learning_starts": 100},
         "bc": {"hidden_sizes": [16, 16], "batch_size": 32}}
@@ -97,6 +102,26 @@ def test_job_names_and_run_directories():
     assert job.name == "auxss-d7500 seeds 0-2,5"
     assert job.run_dirs(Path("study")) == [Path("study/auxss-d7500/seed0"), Path("study/auxss-d7500/seed1"),
                                            Path("study/auxss-d7500/seed2"), Path("study/auxss-d7500/seed5")]
+
+
+def test_what_a_run_directory_holds_decides_what_its_job_does(tmp_path):
+    """run_status: a seed is trained (todo), skipped (finished) or refused (foreign); checkpoint_step
+    groups the seeds to train by the step they resume from."""
+    config = RunConfig(method="sac", steps=300)
+    run = tmp_path / "seed0"
+    assert (run_status(config, run), checkpoint_step(run)) == ("todo", None)
+    run.mkdir()
+    write_config(run, config.to_dict())
+    save_torch(run / "checkpoint.pt", {"step": 150})
+    assert (run_status(config, run), checkpoint_step(run)) == ("todo", 150)
+    (run / "final.pt").touch()
+    assert run_status(config, run) == "finished"
+    assert run_status(dataclasses.replace(config, steps=450), run) == "todo"  # extended to the larger budget
+    assert run_status(dataclasses.replace(config, seed=1), run) == "foreign"
+    (run / "checkpoint.pt").write_text("not a checkpoint")
+    assert checkpoint_step(run).startswith(f"unreadable {run / 'checkpoint.pt'}: ")
+    (run / "config.json").write_text("{")
+    assert run_status(config, run) == "foreign"
 
 
 def test_runs_of_another_task_go_to_its_own_directory():
@@ -242,7 +267,7 @@ def test_a_job_killed_after_its_last_write_is_recorded_done(finished, config_fil
     final = out / "sac-d500" / "seed1" / "final.pt"
     aside = final.with_name("final.aside")
     final.rename(aside)  # unfinished when the sweep looks, so the job is started
-    monkeypatch.setattr(sweep, "JOB_COMMAND", f"import os, signal; os.replace({str(aside)!r}, {str(final)!r}); "
+    monkeypatch.setattr(sweep_jobs, "JOB_COMMAND", f"import os, signal; os.replace({str(aside)!r}, {str(final)!r}); "
                                               "os.kill(os.getpid(), signal.SIGKILL)")
     assert sweep.main(tiny_argv(out, config_file)) == 0
     sac = record(out)["jobs"][0]
@@ -253,7 +278,7 @@ def test_a_job_killed_after_its_last_write_is_recorded_done(finished, config_fil
 def test_without_prctl_a_job_still_dies_with_its_parent(tmp_path):
     """die_with_parent's fallback (polling os.getppid(), for systems without PR_SET_PDEATHSIG): a
     grandchild whose parent is SIGKILLed gets SIGTERM."""
-    grandchild = ("import os, sys, time; from lava_bridge_mj.eval.sweep import die_with_parent; "
+    grandchild = ("import os, sys, time; from lava_bridge_mj.eval.sweep_jobs import die_with_parent; "
                   "die_with_parent(os.getppid(), poll_interval=0.05, use_prctl=False); print('armed', flush=True); "
                   "time.sleep(120)")
     parent = ("import subprocess, sys, time; child = subprocess.Popen([sys.executable, '-c', sys.argv[1]], "
@@ -302,7 +327,7 @@ def test_a_configuration_one_method_rejects_fails_only_its_jobs(tmp_path):
 
 
 def test_a_worker_that_dies_without_a_result_fails_only_its_job(config_file, tmp_path, monkeypatch):
-    monkeypatch.setattr(sweep, "JOB_COMMAND", "import sys; print('boom'); sys.exit(3)")
+    monkeypatch.setattr(sweep_jobs, "JOB_COMMAND", "import sys; print('boom'); sys.exit(3)")
     out = tmp_path / "out"
     assert sweep.main(tiny_argv(out, config_file, "sac,bc", "0")) == 1
     for job in record(out)["jobs"]:
@@ -373,7 +398,7 @@ def test_a_ray_address_that_accepts_but_never_answers_is_given_up_on(tmp_path):
         listener.listen()
         address = f"127.0.0.1:{listener.getsockname()[1]}"
         started = time.monotonic()
-        assert sweep.ray_unreachable(address, timeout=3) == "no Ray cluster answered within 3 s"
+        assert sweep_ray.ray_unreachable(address, timeout=3) == "no Ray cluster answered within 3 s"
         assert time.monotonic() - started < 30
 
 
