@@ -140,6 +140,32 @@ def check_run_directory(config: Any, directory: Path, resume: bool, overwrite: b
     read_provenance(directory)  # refuse a damaged record before training changes anything
 
 
+def run_status(config: Any, directory: Path) -> str:
+    """'finished' (final.pt and this configuration), 'foreign' (config.json of another run, or
+    unreadable) or 'todo' (nothing yet, this configuration unfinished, or finished at another budget)."""
+    try:
+        existing = read_config(directory)
+    except DamagedFileError:
+        return "foreign"
+    if existing is None:
+        return "todo"
+    if not config.continues(existing):
+        return "foreign"
+    # a run finished at a smaller budget is todo: the resume extends it to this one
+    return "finished" if existing == config.to_dict() and (directory / "final.pt").exists() else "todo"
+
+
+def checkpoint_step(directory: Path) -> int | str | None:
+    """The step of the run's latest checkpoint; None without one; the error text if it is unreadable."""
+    path = directory / CHECKPOINTS[0]
+    if not path.exists():
+        return None
+    try:
+        return int(load_torch(path)["step"])
+    except Exception as error:  # noqa: BLE001 - whatever it is, the trainer names it
+        return f"unreadable {path}: {error}"
+
+
 def read_provenance(directory: Path) -> list[dict[str, Any]]:
     """The run's earlier training sessions; none for a new run or one made before provenance was recorded."""
     path = directory / "provenance.json"

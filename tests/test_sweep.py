@@ -1,6 +1,7 @@
 """`lava-bridge-bench sweep`: the job plan, and tiny real sweeps (local worker processes and Ray)
 that finish, skip what is finished, resume what is not, isolate failing jobs and refuse bad usage."""
 
+import dataclasses
 import json
 import os
 import shutil
@@ -13,15 +14,19 @@ from pathlib import Path
 import pytest
 
 from conftest import metrics_without_wall_time
-from lava_bridge_mj.eval import arguments, cli, sweep
-from lava_bridge_mj.eval.sweep import Job, format_seeds, plan
+from lava_bridge_mj.eval import arguments, cli, sweep, sweep_jobs, sweep_ray
+from lava_bridge_mj.eval.arguments import format_seeds
+from lava_bridge_mj.eval.config import RunConfig
+from lava_bridge_mj.eval.run_files import checkpoint_step, run_status, save_torch, write_config
+from lava_bridge_mj.eval.sweep import plan
+from lava_bridge_mj.eval.sweep_jobs import Job
 
 TINY = {"sac": {"hidden_sizes": [16, 16], "batch_size": 32, "buffer_size": 500, "learning_starts": 100},
         "bc": {"hidden_sizes": [16, 16], "batch_size": 32}}
 
 
-def tiny_argv(out, config_file, methods="sac,bc", seeds="0-1", steps=300, *extra):
-    return ["--methods", methods, "--seeds", seeds, "--steps", str(steps), "--eval-every", "150",
+def tiny_argv(out, config_file, methods="sac,bc", seeds="0-1", steps=300, *extra, eval_every=150):
+    return ["--methods", methods, "--seeds", seeds, "--steps", str(steps), "--eval-every", str(eval_every),
             "--eval-episodes", "2", "--config", str(config_file), "--out", str(out), "--workers", "2", *extra]
 
 
@@ -99,6 +104,26 @@ def test_job_names_and_run_directories():
                                            Path("study/auxss-d7500/seed2"), Path("study/auxss-d7500/seed5")]
 
 
+def test_what_a_run_directory_holds_decides_what_its_job_does(tmp_path):
+    """run_status: a seed is trained (todo), skipped (finished) or refused (foreign); checkpoint_step
+    groups the seeds to train by the step they resume from."""
+    config = RunConfig(method="sac", steps=300)
+    run = tmp_path / "seed0"
+    assert (run_status(config, run), checkpoint_step(run)) == ("todo", None)
+    run.mkdir()
+    write_config(run, config.to_dict())
+    save_torch(run / "checkpoint.pt", {"step": 150})
+    assert (run_status(config, run), checkpoint_step(run)) == ("todo", 150)
+    (run / "final.pt").touch()
+    assert run_status(config, run) == "finished"
+    assert run_status(dataclasses.replace(config, steps=450), run) == "todo"  # extended to the larger budget
+    assert run_status(dataclasses.replace(config, seed=1), run) == "foreign"
+    (run / "checkpoint.pt").write_text("not a checkpoint")
+    assert checkpoint_step(run).startswith(f"unreadable {run / 'checkpoint.pt'}: ")
+    (run / "config.json").write_text("{")
+    assert run_status(config, run) == "foreign"
+
+
 def test_runs_of_another_task_go_to_its_own_directory():
     job = Job("auxss", 500, (0, 1), "LavaBridgeBend-v0")
     assert job.run_dirs(Path("study")) == [Path("study/LavaBridgeBend-v0/auxss-d500/seed0"),
@@ -147,40 +172,6 @@ def test_running_a_finished_sweep_again_skips_every_run(finished, config_file, t
     assert [m.stat().st_mtime_ns for m in metrics] == before
 
 
-def test_an_unfinished_run_resumes_from_its_checkpoint_and_only_it_trains(finished, config_file, tmp_path):
-    out = copy_of(finished, tmp_path)
-    stopped = out / "sac-d500" / "seed1"
-    make_unfinished(stopped)
-    os.utime(stopped / "policies" / "step_150.pt", (1e9, 1e9))  # a restart would rewrite it
-    done = out / "sac-d500" / "seed0" / "metrics.csv"
-    done_mtime = done.stat().st_mtime_ns
-
-    assert sweep.main(tiny_argv(out, config_file)) == 0
-    sac = record(out)["jobs"][0]
-    assert (sac["status"], sac["trained"], sac["skipped"], sac["resumed"]) == ("done", [1], [0], {"1": 150})
-    assert statuses(out)["bc-d500 seeds 0-1"] == "skipped"
-    assert (stopped / "policies" / "step_150.pt").stat().st_mtime == 1e9
-    assert (stopped / "final.pt").exists() and done.stat().st_mtime_ns == done_mtime
-    assert metrics_without_wall_time(stopped) == metrics_without_wall_time(finished[0] / "sac-d500" / "seed1")
-
-
-def test_a_larger_steps_extends_finished_runs_from_their_last_checkpoint(finished, config_file, tmp_path):
-    out = copy_of(finished, tmp_path)
-    assert sweep.main(tiny_argv(out, config_file, "sac", "0-1", 450)) == 0
-    jobs = record(out)["jobs"]  # one seed per job: two workers
-    assert [(job["status"], job["trained"], job["resumed"]) for job in jobs] == [
-        ("done", [0], {"0": 300}), ("done", [1], {"1": 300})]
-    for seed in (0, 1):
-        run = out / "sac-d500" / f"seed{seed}"
-        assert [row["step"] for row in metrics_without_wall_time(run)] == ["150", "300", "450"]
-        assert json.loads((run / "config.json").read_text())["steps"] == 450
-    # asking for fewer steps than a run has is that job's error, and its files stay as they were
-    metrics = (out / "sac-d500" / "seed0" / "metrics.csv").read_bytes()
-    assert sweep.main(tiny_argv(out, config_file, "sac", "0-1", 300)) == 1
-    assert all("past steps=300" in job["error"] for job in record(out)["jobs"])
-    assert (out / "sac-d500" / "seed0" / "metrics.csv").read_bytes() == metrics
-
-
 def make_unfinished(run):
     """What a run killed between its checkpoints at steps 150 and 300 leaves."""
     (run / "final.pt").unlink()
@@ -200,12 +191,18 @@ def hold_lock(run, seconds):
     return holder
 
 
-def test_a_rerun_waits_for_a_run_directory_still_being_written(finished, config_file, tmp_path, capsys):
-    """A run directory locked by another process (a job of a killed sweep writing its last checkpoint)
-    for two seconds: the sweep says it waits, then resumes the run instead of failing its job."""
+def test_an_unfinished_run_resumes_from_its_checkpoint_once_its_writer_stops(finished, config_file, tmp_path,
+                                                                              capsys):
+    """A run killed between its checkpoints, its directory still locked for two seconds by another
+    process (a job of a killed sweep writing its last checkpoint): the sweep says it waits, then
+    resumes that run alone from its checkpoint, instead of failing its job."""
     out = copy_of(finished, tmp_path)
     stopped = out / "sac-d500" / "seed1"
     make_unfinished(stopped)
+    os.utime(stopped / "policies" / "step_150.pt", (1e9, 1e9))  # a restart would rewrite it
+    done = out / "sac-d500" / "seed0" / "metrics.csv"
+    done_mtime = done.stat().st_mtime_ns
+
     holder = hold_lock(stopped, 2)
     try:
         assert sweep.main(tiny_argv(out, config_file)) == 0
@@ -214,7 +211,29 @@ def test_a_rerun_waits_for_a_run_directory_still_being_written(finished, config_
         holder.wait()
     assert "still being written by another process (pid 4242); waiting up to 60 s" in capsys.readouterr().err
     sac = record(out)["jobs"][0]
-    assert (sac["status"], sac["trained"], sac["resumed"]) == ("done", [1], {"1": 150})
+    assert (sac["status"], sac["trained"], sac["skipped"], sac["resumed"]) == ("done", [1], [0], {"1": 150})
+    assert statuses(out)["bc-d500 seeds 0-1"] == "skipped"
+    assert (stopped / "policies" / "step_150.pt").stat().st_mtime == 1e9
+    assert (stopped / "final.pt").exists() and done.stat().st_mtime_ns == done_mtime
+    assert metrics_without_wall_time(stopped) == metrics_without_wall_time(finished[0] / "sac-d500" / "seed1")
+
+
+def test_a_larger_steps_extends_finished_runs_from_their_last_checkpoint(finished, config_file, tmp_path):
+    out = copy_of(finished, tmp_path)
+    assert sweep.main(tiny_argv(out, config_file, "sac", "0-1", 450, "--workers", "1")) == 0
+    jobs = record(out)["jobs"]  # both seeds in one job: one worker
+    assert [(job["status"], job["trained"], job["resumed"]) for job in jobs] == [
+        ("done", [0, 1], {"0": 300, "1": 300})]
+    for seed in (0, 1):
+        run = out / "sac-d500" / f"seed{seed}"
+        assert [row["step"] for row in metrics_without_wall_time(run)] == ["150", "300", "450"]
+        assert json.loads((run / "config.json").read_text())["steps"] == 450
+    # asking for fewer steps than a run has is that job's error, and its files stay as they were
+    metrics = (out / "sac-d500" / "seed0" / "metrics.csv").read_bytes()
+    assert sweep.main(tiny_argv(out, config_file, "sac", "0-1", 300, "--workers", "1")) == 1
+    assert [job["status"] for job in record(out)["jobs"]] == ["failed"]
+    assert all("past steps=300" in job["error"] for job in record(out)["jobs"])
+    assert (out / "sac-d500" / "seed0" / "metrics.csv").read_bytes() == metrics
 
 
 def test_a_run_directory_locked_past_the_wait_fails_only_its_job(finished, config_file, tmp_path, capsys,
@@ -242,7 +261,7 @@ def test_a_job_killed_after_its_last_write_is_recorded_done(finished, config_fil
     final = out / "sac-d500" / "seed1" / "final.pt"
     aside = final.with_name("final.aside")
     final.rename(aside)  # unfinished when the sweep looks, so the job is started
-    monkeypatch.setattr(sweep, "JOB_COMMAND", f"import os, signal; os.replace({str(aside)!r}, {str(final)!r}); "
+    monkeypatch.setattr(sweep_jobs, "JOB_COMMAND", f"import os, signal; os.replace({str(aside)!r}, {str(final)!r}); "
                                               "os.kill(os.getpid(), signal.SIGKILL)")
     assert sweep.main(tiny_argv(out, config_file)) == 0
     sac = record(out)["jobs"][0]
@@ -253,7 +272,7 @@ def test_a_job_killed_after_its_last_write_is_recorded_done(finished, config_fil
 def test_without_prctl_a_job_still_dies_with_its_parent(tmp_path):
     """die_with_parent's fallback (polling os.getppid(), for systems without PR_SET_PDEATHSIG): a
     grandchild whose parent is SIGKILLed gets SIGTERM."""
-    grandchild = ("import os, sys, time; from lava_bridge_mj.eval.sweep import die_with_parent; "
+    grandchild = ("import os, sys, time; from lava_bridge_mj.eval.sweep_jobs import die_with_parent; "
                   "die_with_parent(os.getppid(), poll_interval=0.05, use_prctl=False); print('armed', flush=True); "
                   "time.sleep(120)")
     parent = ("import subprocess, sys, time; child = subprocess.Popen([sys.executable, '-c', sys.argv[1]], "
@@ -279,7 +298,7 @@ def test_a_failing_job_is_reported_and_the_others_finish(config_file, tmp_path, 
     foreign.mkdir(parents=True)
     (foreign / "config.json").write_text(json.dumps({"method": "bc", "steps": 5}))
 
-    assert sweep.main(tiny_argv(out, config_file, "sac,bc", "0")) == 1
+    assert sweep.main(tiny_argv(out, config_file, "sac,bc", "0", 150)) == 1
     jobs = {job["job"]: job for job in record(out)["jobs"]}
     assert jobs["sac-d500 seeds 0"]["status"] == "done"
     assert (out / "sac-d500" / "seed0" / "final.pt").exists()
@@ -294,7 +313,7 @@ def test_a_configuration_one_method_rejects_fails_only_its_jobs(tmp_path):
     config = tmp_path / "auxss_only.json"
     config.write_text(json.dumps({**TINY, "strategy": {"sigma": 0.2}}))  # start-strategy options: bc has none
     out = tmp_path / "out"
-    assert sweep.main(tiny_argv(out, config, "auxss,bc", "0")) == 1
+    assert sweep.main(tiny_argv(out, config, "auxss,bc", "0", 150)) == 1
     jobs = {job["job"]: job for job in record(out)["jobs"]}
     assert jobs["auxss-d500 seeds 0"]["status"] == "done"
     assert jobs["bc-d500 seeds 0"]["status"] == "failed" and "sigma" in jobs["bc-d500 seeds 0"]["error"]
@@ -302,7 +321,7 @@ def test_a_configuration_one_method_rejects_fails_only_its_jobs(tmp_path):
 
 
 def test_a_worker_that_dies_without_a_result_fails_only_its_job(config_file, tmp_path, monkeypatch):
-    monkeypatch.setattr(sweep, "JOB_COMMAND", "import sys; print('boom'); sys.exit(3)")
+    monkeypatch.setattr(sweep_jobs, "JOB_COMMAND", "import sys; print('boom'); sys.exit(3)")
     out = tmp_path / "out"
     assert sweep.main(tiny_argv(out, config_file, "sac,bc", "0")) == 1
     for job in record(out)["jobs"]:
@@ -373,7 +392,7 @@ def test_a_ray_address_that_accepts_but_never_answers_is_given_up_on(tmp_path):
         listener.listen()
         address = f"127.0.0.1:{listener.getsockname()[1]}"
         started = time.monotonic()
-        assert sweep.ray_unreachable(address, timeout=3) == "no Ray cluster answered within 3 s"
+        assert sweep_ray.ray_unreachable(address, timeout=3) == "no Ray cluster answered within 3 s"
         assert time.monotonic() - started < 30
 
 
@@ -433,19 +452,25 @@ def test_the_ray_backend_without_ray_names_the_extra(config_file, tmp_path, caps
     assert not (tmp_path / "out").exists()
 
 
+def kill_argv(out, config_file, workers):
+    """The sweep the kill tests interrupt: sac seeds 0-1 to 450 steps with a checkpoint every 75, so
+    that a kill after its first checkpoints (updates start at step 100) leaves most of the run to go."""
+    return tiny_argv(out, config_file, "sac", "0-1", 450, "--workers", str(workers), eval_every=75)
+
+
 @pytest.fixture(scope="module")
-def reference_750(tmp_path_factory, config_file):
-    """An uninterrupted sweep of sac seeds 0-1 to 750 steps (one job): what interrupted ones must equal."""
+def uninterrupted(tmp_path_factory, config_file):
+    """The kill tests' sweep run uninterrupted in one job: what interrupted ones must equal."""
     out = tmp_path_factory.mktemp("reference") / "out"
-    assert sweep.main(tiny_argv(out, config_file, "sac", "0-1", 750, "--workers", "1")) == 0
+    assert sweep.main(kill_argv(out, config_file, workers=1)) == 0
     return out
 
 
-def test_a_sweep_killed_with_sigkill_resumes_to_the_uninterrupted_numbers(config_file, tmp_path, reference_750):
+def test_a_sweep_killed_with_sigkill_resumes_to_the_uninterrupted_numbers(config_file, tmp_path, uninterrupted):
     """SIGKILL of the sweep and its job process mid-training (after two checkpoints), then the same
     command: every run finishes with the metrics of an uninterrupted sweep."""
     out = tmp_path / "out"
-    argv = tiny_argv(out, config_file, "sac", "0-1", 750, "--workers", "1")
+    argv = kill_argv(out, config_file, workers=1)
     process = subprocess.Popen([sys.executable, "-m", "lava_bridge_mj.eval.sweep", *argv],
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     started = next(line for line in process.stdout if "(pid " in line)
@@ -458,23 +483,23 @@ def test_a_sweep_killed_with_sigkill_resumes_to_the_uninterrupted_numbers(config
     process.kill()
     process.communicate(timeout=60)
     assert not (out / "sac-d500" / "seed0" / "final.pt").exists(), "killed before the end"
-    early = out / "sac-d500" / "seed0" / "policies" / "step_150.pt"
+    early = out / "sac-d500" / "seed0" / "policies" / "step_75.pt"
     written = early.stat().st_mtime_ns
     assert sweep.main(argv) == 0
     assert early.stat().st_mtime_ns == written, "resumed from a checkpoint, not retrained from the start"
     for seed in ("seed0", "seed1"):
         resumed = metrics_without_wall_time(out / "sac-d500" / seed)
-        assert resumed == metrics_without_wall_time(reference_750 / "sac-d500" / seed)
-        assert [row["step"] for row in resumed] == ["150", "300", "450", "600", "750"]
+        assert resumed == metrics_without_wall_time(uninterrupted / "sac-d500" / seed)
+        assert [row["step"] for row in resumed] == ["75", "150", "225", "300", "375", "450"]
 
 
 @needs_proc
-def test_jobs_die_with_a_sweep_killed_alone_and_the_rerun_finishes_them(config_file, tmp_path, reference_750):
+def test_jobs_die_with_a_sweep_killed_alone_and_the_rerun_finishes_them(config_file, tmp_path, uninterrupted):
     """SIGKILL of only the sweep's process, after a checkpoint of each of its two jobs: the jobs write a
     checkpoint and stop within seconds instead of training on as orphans, and the same command at once
     resumes both to the uninterrupted numbers, recorded as done."""
     out = tmp_path / "out"
-    argv = tiny_argv(out, config_file, "sac", "0-1", 750, "--workers", "2")
+    argv = kill_argv(out, config_file, workers=2)
     process = subprocess.Popen([sys.executable, "-m", "lava_bridge_mj.eval.sweep", *argv],
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     pids = []
@@ -505,4 +530,4 @@ def test_jobs_die_with_a_sweep_killed_alone_and_the_rerun_finishes_them(config_f
     assert record(out)["status"] == "finished"
     assert [(job["status"], job["error"]) for job in record(out)["jobs"]] == [("done", None), ("done", None)]
     for run in runs:
-        assert metrics_without_wall_time(run) == metrics_without_wall_time(reference_750 / "sac-d500" / run.name)
+        assert metrics_without_wall_time(run) == metrics_without_wall_time(uninterrupted / "sac-d500" / run.name)
