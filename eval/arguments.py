@@ -113,6 +113,12 @@ def apply_settings(values: dict, settings: Sequence[tuple[list[str], object]] | 
     return values
 
 
+def config_source(args: argparse.Namespace) -> str:
+    """How error messages name where a configuration came from: its --config file and/or --set."""
+    sources = [f"--config {args.config}"] * bool(args.config) + ["--set"] * bool(args.settings)
+    return " / ".join(sources) or "options"
+
+
 def directory(text: str) -> Path:
     """An argparse type: a directory path; an empty one (which would mean the current directory) is refused."""
     if not text.strip():

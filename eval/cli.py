@@ -119,8 +119,7 @@ def _config_from(args: argparse.Namespace, parser: argparse.ArgumentParser) -> R
         if getattr(args, name) is not None:
             values[name] = getattr(args, name)
     try:
-        sources = [f"--config {args.config}"] * bool(args.config) + ["--set"] * bool(args.settings)
-        return RunConfig.from_dict(values, source=" / ".join(sources) or "options")
+        return RunConfig.from_dict(values, source=arguments.config_source(args))
     except ValueError as error:
         parser.error(str(error))
 

@@ -42,7 +42,7 @@ from lava_bridge_mj.eval.run_files import (CHECKPOINTS, VIDEOS, DamagedFileError
                                            append_provenance, check_run_directory, locked, read_checkpoint,
                                            remove_run, write_config)
 from lava_bridge_mj.eval.seed_run import SeedRun
-from lava_bridge_mj.eval.tracking import check_sinks, open_sink
+from lava_bridge_mj.eval.tracking import ProgressReport, check_sinks, open_sink
 from lava_bridge_mj.vector import LavaBridgeVectorEnv
 
 
@@ -139,7 +139,7 @@ class Run:
         return self.seed_runs[0].strategy
 
     # --- the loop -------------------------------------------------------------------------------
-    def train(self, progress: bool = True) -> None:
+    def train(self, progress: bool | Path = True) -> None:
         """Advance to config.steps, then write final.pt; RunInterrupted after a checkpoint on a signal."""
         with self._stop_on_signals():
             self._train(progress)
@@ -164,8 +164,9 @@ class Run:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
 
-    def _train(self, progress: bool) -> None:
+    def _train(self, progress: bool | Path) -> None:
         config, seed_runs = self.config, self.seed_runs
+        report = ProgressReport(progress, self.step, config.steps) if isinstance(progress, (str, Path)) else None
         online = self.method.online
         learning_starts = config.sac.learning_starts if online else 0
         start_time = time.perf_counter() - self.elapsed
@@ -174,7 +175,7 @@ class Run:
             self.elapsed = time.perf_counter() - start_time
             self.save()  # the guide's training is not repeated by a resume
         seeds = ", ".join(str(s) for s in self.agent.seeds)
-        bar = tqdm(total=config.steps, initial=self.step, disable=not progress, unit="step",
+        bar = tqdm(total=config.steps, initial=self.step, disable=progress is not True, unit="step",
                    desc=f"{config.method} seed{'s' if len(seed_runs) > 1 else ''} {seeds}", dynamic_ncols=True)
         while self.step < config.steps:
             if online:  # offline methods only update
@@ -211,6 +212,8 @@ class Run:
                 self.elapsed = time.perf_counter() - start_time
                 rows = self.evaluate()
                 returns = [r["train_return"] for r in rows if np.isfinite(r["train_return"])]
+                if rows and report is not None:
+                    report.evaluated(np.mean([r["success_p0"] for r in rows]), np.mean([r["success_ood"] for r in rows]))
                 if rows:
                     bar.set_postfix(p0=f"{np.mean([r['success_p0'] for r in rows]):.2f}",
                                     ood=f"{np.mean([r['success_ood'] for r in rows]):.2f}",
@@ -224,6 +227,8 @@ class Run:
                     bar.close()
                     raise RunInterrupted(self.stop_signal, self.step)
             bar.update(1)
+            if report is not None and (evaluation_due or self.step % 100 == 0):
+                report.write(self.step, force=evaluation_due)
         bar.close()
         self.elapsed = time.perf_counter() - start_time
         self.save("final.pt")
@@ -371,7 +376,7 @@ class Run:
 
 
 def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seeds: Sequence[int] | None = None,
-          resume: bool = False, overwrite: bool = False, progress: bool = True, log: Sequence[str] = (),
+          resume: bool = False, overwrite: bool = False, progress: bool | str | Path = True, log: Sequence[str] = (),
           log_videos: bool = False) -> Run:
     """Train `config` into `out_dir` and return the finished Run.
 
@@ -382,6 +387,7 @@ def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seed
     from its checkpoints; the configuration must match) or `overwrite` (remove that run's files first).
     While training, every directory is locked against a second process.
 
+    `progress`: a progress bar (True), none (False), or the path of a `ProgressReport` file (a sweep's jobs).
     `log` names live tracking sinks ("tensorboard", "wandb": eval/tracking.py) that each seed's
     evaluations go to as well; `log_videos` writes each evaluation's rollouts from p0 and ood to
     videos/step_N.mp4 (and to the sinks).

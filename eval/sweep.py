@@ -38,6 +38,7 @@ pool, eval/sweep_ray.py the Ray backend.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import signal
@@ -47,8 +48,9 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import lava_bridge_mj
-from lava_bridge_mj.eval.arguments import (check_writable, in_main_thread, parse_seeds, positive_int,
-                                           raise_keyboard_interrupt, read_config_file)
+from lava_bridge_mj.eval.arguments import (apply_settings, check_writable, config_source, in_main_thread,
+                                           parse_seeds, positive_int, raise_keyboard_interrupt, read_config_file,
+                                           setting)
 from lava_bridge_mj.eval.config import METHODS, RunConfig
 from lava_bridge_mj.eval import sweep_ray
 from lava_bridge_mj.eval.run_files import lock_holder
@@ -61,6 +63,8 @@ RAY_EXTRA = "pip install 'lava-bridge-mj[ray]'"
 LOCK_WAIT = 60.0
 """Seconds a sweep waits for run directories still locked by another process (a job of a killed sweep
 writing its last checkpoint) before starting its jobs, which then fail on a directory still in use."""
+PROGRESS_EVERY = 60.0
+"""Seconds between the sweep's progress lines, by default."""
 MAX_SEEDS = 1000
 """Most seeds one --seeds list may name: a typo such as 0-99999999 is refused instead of planning for hours."""
 
@@ -169,7 +173,13 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--config", type=Path,
                         help="JSON file of RunConfig fields shared by every run (method, demos and seed "
                              "come from the sweep); a field a method rejects fails that method's jobs")
+    parser.add_argument("--set", dest="settings", type=setting, action="append", metavar="KEY=VALUE",
+                        help="one RunConfig field by its dotted name, over --config (e.g. --set sac.lr=1e-3); "
+                             "as in training")
     parser.add_argument("--out", type=Path, required=True, help="directory of the sweep's runs")
+    parser.add_argument("--progress-every", type=float, default=PROGRESS_EVERY, metavar="SECONDS",
+                        help="print one line per running local job (step, steps/s, ETA, latest success) every "
+                             "this many seconds; 0: never (default: %(default)g)")
     parser.add_argument("--workers", type=positive_int,
                         help="jobs running at once (default: the CPUs this process may use; with --backend "
                              "ray, the cluster's CPUs / --threads); also the least number of jobs the seeds "
@@ -204,7 +214,9 @@ def main(argv: list[str] | None = None) -> int:
         except ImportError:
             parser.error(f"--backend ray needs Ray, an optional extra: {RAY_EXTRA}")
     check_writable(args.out, parser)
-    values = read_config_file(args.config, parser)
+    if not (math.isfinite(args.progress_every) and args.progress_every >= 0):
+        parser.error(f"--progress-every must be a number of seconds >= 0, got {args.progress_every}")
+    values = apply_settings(read_config_file(args.config, parser), args.settings, parser)
     for name in ("steps", "eval_every", "eval_episodes"):
         if getattr(args, name) is not None:
             values[name] = getattr(args, name)
@@ -216,7 +228,7 @@ def main(argv: list[str] | None = None) -> int:
                 try:
                     configs[group] = RunConfig.from_dict({**values, "env_id": env_id, "method": method,
                                                           "demos": demos, "seed": 0},
-                                                         source=f"--config {args.config}" if args.config else "options")
+                                                         source=config_source(args))
                 except ValueError as error:
                     rejected[group] = str(error)
     if not configs:  # wrong for every method: a usage error, not a sweep of failures
@@ -249,6 +261,7 @@ def _sweep(args: argparse.Namespace, argv, workers: int, configs: dict, rejected
     arguments = {"argv": list(sys.argv[1:] if argv is None else argv), "envs": args.envs, "methods": args.methods,
                  "seeds": args.seeds, "demos": args.demos, "steps": args.steps, "eval_every": args.eval_every,
                  "eval_episodes": args.eval_episodes, "config": str(args.config) if args.config else None,
+                 "set": [f"{'.'.join(path)}={json.dumps(value)}" for path, value in args.settings or ()],
                  "out": str(out), "workers": workers, "seeds_per_job": args.seeds_per_job,
                  "threads": args.threads, "backend": args.backend, "address": args.address}
     # a job of a sweep killed just before may still be writing its last checkpoint: what its runs
@@ -287,7 +300,7 @@ def _sweep(args: argparse.Namespace, argv, workers: int, configs: dict, rejected
         if args.backend == "ray":
             sweep_ray.run_ray(todo, record)
         else:
-            run_local(todo, record, workers)
+            run_local(todo, record, workers, args.progress_every)
         record.status = "finished"
     except KeyboardInterrupt:
         record.status = "interrupted"

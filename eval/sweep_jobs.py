@@ -85,13 +85,14 @@ def _foreign_error(config: RunConfig, directory: Path) -> str:
             "overwriting it: move it away or sweep into another --out")
 
 
-def run_job(job: Job, config_values: dict, out: str | Path, threads: int = 1) -> dict:
+def run_job(job: Job, config_values: dict, out: str | Path, threads: int = 1, progress: str | None = None) -> dict:
     """Train the unfinished seeds of `job` into their run directories. Never raises: the result's
     "status" is done, skipped (every seed already finished), failed (with "error") or interrupted.
 
     Seeds already finished are skipped; seeds with checkpoints resume from them, grouped into one
     batch per checkpoint step (a batch resumes only from a step all its seeds share); a directory
-    that holds another configuration is an error, and the job's other seeds still train."""
+    that holds another configuration is an error, and the job's other seeds still train. `progress`:
+    the path of the file that says how far the job is (tracking.ProgressReport), for the sweep's lines."""
     from lava_bridge_mj.eval.runner import RunInterrupted, train  # loads torch: the planner does not
 
     started = time.perf_counter()
@@ -118,7 +119,7 @@ def run_job(job: Job, config_values: dict, out: str | Path, threads: int = 1) ->
             print(f"{job.group}: training seeds {format_seeds(seeds)}{resumed}", flush=True)
             try:
                 run = train(config, [Path(out) / job.group / f"seed{s}" for s in seeds], seeds=seeds,
-                            resume=True, progress=False)
+                            resume=True, progress=progress or False)
             except RunInterrupted:
                 raise
             except Exception as error:  # noqa: BLE001 - one batch's failure must not stop the others
@@ -145,7 +146,7 @@ def run_job(job: Job, config_values: dict, out: str | Path, threads: int = 1) ->
 
 def run_spec(spec: dict) -> dict:
     """`run_job` of a `Job.spec`."""
-    return run_job(Job.from_spec(spec), spec["config"], spec["out"], spec["threads"])
+    return run_job(Job.from_spec(spec), spec["config"], spec["out"], spec["threads"], spec.get("progress"))
 
 
 def job_main(spec_json: str, result_file: str, sweep_pid: int | None = None) -> None:
@@ -235,17 +236,24 @@ class SweepRecord:
 
 
 # --- the local backend: runs `todo` (indices into the record's jobs, with their specs) and records results
-def run_local(todo: list[tuple[int, dict]], record: SweepRecord, workers: int) -> None:
+def run_local(todo: list[tuple[int, dict]], record: SweepRecord, workers: int, progress_every: float = 0.0) -> None:
     """Run the jobs in at most `workers` worker processes at a time, each a fresh Python process (so a
-    crash, even a segfault, fails only its job). KeyboardInterrupt: stop them, then re-raise."""
+    crash, even a segfault, fails only its job), printing one progress line per running job every
+    `progress_every` seconds (0: never). KeyboardInterrupt: stop them, then re-raise."""
     env = {**os.environ, **worker_environment(todo[0][1]["threads"])} if todo else {}
     queue, running = list(todo), {}
+    last_progress = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="lava-bridge-sweep-") as results:
         try:
             while queue or running:
+                if progress_every and running and time.perf_counter() - last_progress >= progress_every:
+                    last_progress = time.perf_counter()
+                    for index, (_, _, spec) in sorted(running.items()):
+                        print(progress_line(record.jobs[index]["job"], Path(spec["progress"])), flush=True)
                 while queue and len(running) < workers:
                     index, spec = queue.pop(0)
                     result_file = Path(results) / f"job{index}.json"
+                    spec = {**spec, "progress": str(Path(results) / f"job{index}.progress.json")}
                     log = Path(record.jobs[index]["log"])
                     try:
                         with open(log, "ab") as stream:  # the child holds its own descriptor
@@ -312,6 +320,26 @@ def without_result(spec: dict, status: str, error: str) -> dict:
     if config is not None and Job.from_spec(spec).finished(config, Path(spec["out"])):
         return {"status": "done", "error": None}
     return {"status": status, "error": error}
+
+
+def progress_line(job: str, path: Path) -> str:
+    """`  JOB: step 12,000/100,000 (12%), 95 steps/s, ETA 13m 41s, p0 0.40, ood 0.20` from the job's
+    progress file; `  JOB: starting` before it has one."""
+    try:
+        report = json.loads(path.read_text())
+    except (OSError, ValueError):  # not written yet (the job is loading), or replaced while read
+        return f"  {job}: starting"
+    step, steps, rate = report["step"], report["steps"], report["rate"]
+    eta = f"ETA {_duration((steps - step) / rate)}" if rate > 0 else "ETA -"
+    success = "" if report["success_p0"] is None else \
+        f", p0 {report['success_p0']:.2f}, ood {report['success_ood']:.2f}"
+    return f"  {job}: step {step:,}/{steps:,} ({100 * step / steps:.0f}%), {rate:.0f} steps/s, {eta}{success}"
+
+
+def _duration(seconds: float) -> str:
+    minutes, seconds = divmod(round(seconds), 60)
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours}h {minutes:02d}m" if hours else f"{minutes}m {seconds:02d}s"
 
 
 def print_finished(entry: dict) -> None:

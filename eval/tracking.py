@@ -5,16 +5,23 @@ column but `step`, which is the x axis), the start strategy's sampling probabili
 and, when the run records them, the mp4 of the policy's rollouts from p0 and ood at that evaluation.
 Each seed of a batch has its own sink, written inside its run directory (`tensorboard/`, `wandb/`),
 so `--overwrite` removes it with the run and a resume appends to it.
+
+`ProgressReport` is the sweep's own sink: a small JSON file per job saying how far it is, which the
+sweep reads to print one progress line per running job.
 """
 
 from __future__ import annotations
 
 import importlib.util
+import json
 import math
+import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from lava_bridge_mj.eval.atomic import atomic_write_text
 
 SINKS = ("tensorboard", "wandb")
 """The names `--log` accepts."""
@@ -22,6 +29,30 @@ EXTRAS = {"tensorboard": "pip install 'lava-bridge-mj[tensorboard]'", "wandb": "
 WANDB_PROJECT = "lava-bridge-mj"
 WANDB_ID_FILE = "run_id"
 """wandb/run_id: the W&B run's id, so a resumed run logs into the same W&B run."""
+
+
+class ProgressReport:
+    """A JSON file that says how far a training session is (step, steps, steps/s since the session
+    began, mean success from p0 and ood at the last evaluation), replaced atomically at most every
+    `every` seconds and at each evaluation: what a sweep reads to print its jobs' progress."""
+
+    def __init__(self, path: str | Path, step: int, steps: int, every: float = 5.0):
+        self.path, self.steps, self.every = Path(path), steps, every
+        self.first_step, self.started, self.last = step, time.perf_counter(), -math.inf
+        self.success: tuple[float, float] | None = None
+
+    def evaluated(self, p0: float, ood: float) -> None:
+        self.success = (float(p0), float(ood))
+
+    def write(self, step: int, force: bool = False) -> None:
+        now = time.perf_counter()
+        if not force and now - self.last < self.every:
+            return
+        self.last = now
+        rate = (step - self.first_step) / max(now - self.started, 1e-9)
+        record = {"step": step, "steps": self.steps, "rate": rate,
+                  "success_p0": self.success and self.success[0], "success_ood": self.success and self.success[1]}
+        atomic_write_text(self.path, json.dumps(record))
 
 
 class TrackingUnavailable(ValueError):

@@ -4,6 +4,7 @@ that finish, skip what is finished, resume what is not, isolate failing jobs and
 import dataclasses
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -19,7 +20,8 @@ from lava_bridge_mj.eval.arguments import format_seeds
 from lava_bridge_mj.eval.config import RunConfig
 from lava_bridge_mj.eval.run_files import checkpoint_step, run_status, save_torch, write_config
 from lava_bridge_mj.eval.sweep import plan
-from lava_bridge_mj.eval.sweep_jobs import Job
+from lava_bridge_mj.eval.sweep_jobs import Job, progress_line
+from lava_bridge_mj.eval.tracking import ProgressReport
 
 TINY = {"sac": {"hidden_sizes": [16, 16], "batch_size": 32, "buffer_size": 500, "learning_starts": 100},
         "bc": {"hidden_sizes": [16, 16], "batch_size": 32}}
@@ -298,7 +300,7 @@ def test_a_failing_job_is_reported_and_the_others_finish(config_file, tmp_path, 
     foreign.mkdir(parents=True)
     (foreign / "config.json").write_text(json.dumps({"method": "bc", "steps": 5}))
 
-    assert sweep.main(tiny_argv(out, config_file, "sac,bc", "0", 150)) == 1
+    assert sweep.main(tiny_argv(out, config_file, "sac,bc", "0", 150, "--progress-every", "0.2")) == 1
     jobs = {job["job"]: job for job in record(out)["jobs"]}
     assert jobs["sac-d500 seeds 0"]["status"] == "done"
     assert (out / "sac-d500" / "seed0" / "final.pt").exists()
@@ -307,6 +309,33 @@ def test_a_failing_job_is_reported_and_the_others_finish(config_file, tmp_path, 
     assert json.loads((foreign / "config.json").read_text()) == {"method": "bc", "steps": 5}  # not overwritten
     printed = capsys.readouterr().out
     assert "error in bc-d500 seeds 0" in printed and "1 done, 1 failed" in printed
+    # while it ran, the job's progress lines (the job takes seconds to load torch alone)
+    assert re.search(r"^  sac-d500 seeds 0: (starting|step [\d,]+/150 )", printed, re.M), printed
+
+
+def test_a_progress_line_says_how_far_a_job_is(tmp_path):
+    path = tmp_path / "job0.progress.json"
+    assert progress_line("auxss-d500 seeds 0-4", path) == "  auxss-d500 seeds 0-4: starting"
+    path.write_text(json.dumps({"step": 12000, "steps": 100000, "rate": 95.0, "success_p0": 0.4, "success_ood": 0.2}))
+    # ETA: 88,000 steps at 95 steps/s = 926.3 s
+    assert progress_line("auxss-d500 seeds 0-4", path) == \
+        "  auxss-d500 seeds 0-4: step 12,000/100,000 (12%), 95 steps/s, ETA 15m 26s, p0 0.40, ood 0.20"
+    path.write_text(json.dumps({"step": 500, "steps": 300000, "rate": 50.0, "success_p0": None, "success_ood": None}))
+    assert progress_line("sac-d500 seeds 0", path) == "  sac-d500 seeds 0: step 500/300,000 (0%), 50 steps/s, ETA 1h 39m"
+
+
+def test_a_progress_report_is_written_at_evaluations_and_at_most_every_few_seconds(tmp_path):
+    path = tmp_path / "progress.json"
+    report = ProgressReport(path, step=1000, steps=5000, every=3600)
+    report.write(1100)
+    assert json.loads(path.read_text())["step"] == 1100 and json.loads(path.read_text())["success_p0"] is None
+    report.write(1200)  # within `every` of the last write: skipped
+    assert json.loads(path.read_text())["step"] == 1100
+    report.evaluated(0.5, 0.25)
+    report.write(1500, force=True)  # an evaluation: always written
+    written = json.loads(path.read_text())
+    assert (written["step"], written["steps"], written["success_p0"], written["success_ood"]) == (1500, 5000, 0.5, 0.25)
+    assert written["rate"] > 0
 
 
 def test_a_configuration_one_method_rejects_fails_only_its_jobs(tmp_path):
@@ -407,6 +436,8 @@ def test_a_ray_address_that_accepts_but_never_answers_is_given_up_on(tmp_path):
     ({"--steps": "-5"}, "positive integer"),
     ({"--seeds": "0-99999999"}, "expected at most 1,000 seeds, got 100,000,000"),
     ({"--threads": "100000"}, "--threads 100000: this machine lets the sweep use"),
+    ({"--progress-every": "-1"}, "--progress-every must be a number of seconds >= 0, got -1.0"),
+    ({"--set": "sac.lrr=1"}, "/ --set: 'sac': unknown fields ['lrr']"),
 ])
 def test_usage_errors_exit_2_and_write_nothing(change, message, config_file, tmp_path, capsys):
     argv = tiny_argv(tmp_path / "out", config_file)
