@@ -235,9 +235,15 @@ def group_runs(runs: list[RunRecord]) -> list[Group]:
 def iqm(scores: np.ndarray) -> np.ndarray:
     """IQM over the leading (seed) axis of a (seeds, ...) or (seeds, tasks, ...) array, for every
     remaining column: `rliable.metrics.aggregate_iqm` (a 25%-trimmed mean over runs and tasks) applied
-    column by column, in one vectorised call because the bootstrap calls it thousands of times."""
+    column by column, in one vectorised call because the bootstrap calls it thousands of times.
+
+    The arithmetic is `scipy.stats.trim_mean(x, 0.25, axis=0)`'s, step for step (the same partition,
+    the same mean, so the same bits), without the argument handling around it: that took 4 ms a call,
+    95% of a report's time at 2,000 resamples x 34 bootstraps."""
     runs_and_tasks = scores.reshape(-1, *scores.shape[2:]) if scores.ndim > 2 else scores
-    return scipy.stats.trim_mean(runs_and_tasks, 0.25, axis=0)
+    seeds = len(runs_and_tasks)
+    cut = int(0.25 * seeds)
+    return np.partition(runs_and_tasks, (cut, seeds - cut - 1), axis=0)[cut:seeds - cut].mean(axis=0)
 
 
 @contextmanager
