@@ -232,6 +232,13 @@ def group_runs(runs: list[RunRecord]) -> list[Group]:
     return groups
 
 
+
+def groups_of(groups: list[Group], method: str, demos: int | None = None) -> list[Group]:
+    """The groups of `method` (only those on demo set `demos` when given), in the order given: the one
+    place where groups are picked by their method's name."""
+    key = (method,) if demos is None else (method, demos)
+    return [g for g in groups if (g.method, g.demos)[:len(key)] == key]
+
 def iqm(scores: np.ndarray) -> np.ndarray:
     """IQM over the leading (seed) axis of a (seeds, ...) or (seeds, tasks, ...) array, for every
     remaining column: `rliable.metrics.aggregate_iqm` (a 25%-trimmed mean over runs and tasks) applied
