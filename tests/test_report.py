@@ -20,7 +20,7 @@ pytest.importorskip("rliable", reason="the report needs the plots extra: pip ins
 from conftest import read_only  # noqa: E402
 from rliable import metrics as rliable_metrics  # noqa: E402
 
-from lava_bridge_mj.eval import aggregate, cli, findings, report  # noqa: E402
+from lava_bridge_mj.eval import aggregate, cli, findings, report, report_figures, report_groups  # noqa: E402
 from lava_bridge_mj.eval.config import METHODS, RunConfig  # noqa: E402
 from lava_bridge_mj.eval.run_files import METRIC_FIELDS  # noqa: E402
 
@@ -182,6 +182,29 @@ def test_groups_by_config_not_by_directory_names_at_any_depth(tmp_path):
                       "auxss (0.5K) [strategy.sigma=0.2]": [0, 1], "auxss (0.5K)": [0]}
     # in the runner's method order (auxss before hysac), then demo set
     assert [g.method for g in groups] == sorted((g.method for g in groups), key=METHODS.index)
+
+
+def test_groups_are_picked_by_method_and_demo_set_and_described_by_the_registry(tmp_path):
+    write_run(tmp_path / "a" / "seed0", method="auxss", seed=0)
+    write_run(tmp_path / "b" / "seed0", method="auxss", seed=0, strategy={"sigma": 0.2})
+    write_run(tmp_path / "c" / "seed0", method="auxss", seed=0, demos=7500)
+    write_run(tmp_path / "d" / "seed0", method="hysac", seed=0)
+    write_run(tmp_path / "e" / "seed0", method="bc", seed=0)
+    groups = aggregate.group_runs(aggregate.find_runs(tmp_path))
+
+    def labels(chosen):
+        return [g.label for g in chosen]
+
+    auxss = ["auxss (0.5K)", "auxss (0.5K) [strategy.sigma=0.2]", "auxss (7.5K)"]
+    assert labels(aggregate.groups_of(groups, "auxss")) == auxss
+    assert labels(aggregate.groups_of(groups, "auxss", 7500)) == ["auxss (7.5K)"]
+    assert aggregate.groups_of(groups, "hysac", 7500) == [] and aggregate.groups_of(groups, "sac") == []
+    assert report_groups.START_STUDY == ("auxss", "omega_ss", "uniform_ss", "goaldist_ss")
+    assert labels(report_groups.benchmark_groups(groups)) == [*auxss[:2], "hysac (0.5K)", "bc (0.5K)"]
+    assert labels(report_groups.demo_size_groups(groups)) == auxss
+    # bc learns offline (the registry says so): it is not tested against AuxSS
+    assert [(a.label, b.label) for a, b in report_groups.comparison_pairs(groups)] == [
+        ("auxss (0.5K)", "hysac (0.5K)"), ("auxss (0.5K)", "auxss (7.5K)"), ("auxss (0.5K)", auxss[1])]
 
 
 def test_labels_name_only_what_differs_from_the_defaults(tmp_path):
@@ -629,5 +652,5 @@ def test_the_maze_figure_of_a_task_draws_its_own_layout(tmp_path):
 
     write_run(tmp_path / "seed0", env_id="LavaBridgeTwoCrossings-v0")
     [run] = aggregate.find_runs(tmp_path)
-    assert report._layout(run) == lava_bridge_mj.task_layout("LavaBridgeTwoCrossings-v0")
-    assert report._layout(run) != lava_bridge_mj.task_layout("LavaBridge-v0")
+    assert report_figures.maze_layout(run) == lava_bridge_mj.task_layout("LavaBridgeTwoCrossings-v0")
+    assert report_figures.maze_layout(run) != lava_bridge_mj.task_layout("LavaBridge-v0")
