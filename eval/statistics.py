@@ -75,6 +75,7 @@ class ReachCount:
         return self.reached / self.seeds if self.seeds else math.nan
 
 
+@functools.cache  # asked for again by each table and pair the group is in
 def reach_count(reached: int, seeds: int, confidence: float = CONFIDENCE) -> ReachCount:
     """The reach count with its Clopper-Pearson interval (scipy's exact binomial interval)."""
     if not 0 <= reached <= seeds or seeds < 1:
