@@ -1,8 +1,8 @@
 """The report's Markdown tables, each a list of lines: the runs, the last evaluation, the late-training
 window, steps to threshold, reach counts, the pairwise tests and the paper's findings.
 
-Each takes the groups of one task (and the curves or settings it needs) and computes nothing the
-report does not print; eval/aggregate.py and eval/statistics.py hold the arithmetic.
+Each takes the groups of one task (and the curves or settings it needs) and returns the table's
+lines, text and rows; eval/aggregate.py and eval/statistics.py hold the arithmetic.
 """
 
 from __future__ import annotations
