@@ -45,7 +45,7 @@ import math
 import numpy as np
 
 from lava_bridge_mj.agents.methods import METHODS
-from lava_bridge_mj.eval.aggregate import Group, demos_label, iqm, steps_to_threshold
+from lava_bridge_mj.eval.aggregate import Group, demos_label, groups_of, iqm, steps_to_threshold
 
 REPRODUCED, PARTLY, NOT, MISSING = "reproduced", "partly", "not reproduced", "missing runs"
 TOLERANCE = 1e-9
@@ -68,7 +68,7 @@ def is_default(group: Group) -> bool:
 
 def pick(groups: list[Group], method: str, demos: int = 500) -> Group | None:
     """The method's group on that demo set in its default configuration; None if there is none."""
-    return next((g for g in groups if g.method == method and g.demos == demos and is_default(g)), None)
+    return next((g for g in groups_of(groups, method, demos) if is_default(g)), None)
 
 
 def common_step(groups: list[Group]) -> float | None:
@@ -248,7 +248,7 @@ def variant_rows(groups: list[Group], method: str = "auxss") -> list[str]:
     groups cut to their common last step."""
     groups = _cut(groups, common_step(groups))
     base = pick(groups, method)
-    variants = [g for g in groups if g.method == method and g.demos == 500 and not is_default(g)]
+    variants = [g for g in groups_of(groups, method, 500) if not is_default(g)]
     if base is None or not variants:
         return []
     return SUMMARY_HEADER + [_summary_row(g) for g in [base, *variants]]

@@ -75,6 +75,7 @@ class ReachCount:
         return self.reached / self.seeds if self.seeds else math.nan
 
 
+@functools.cache  # asked for again by each table and pair the group is in
 def reach_count(reached: int, seeds: int, confidence: float = CONFIDENCE) -> ReachCount:
     """The reach count with its Clopper-Pearson interval (scipy's exact binomial interval)."""
     if not 0 <= reached <= seeds or seeds < 1:
@@ -210,9 +211,12 @@ def fisher_rejections(seeds_a: int, seeds_b: int, alpha: float = ALPHA) -> np.nd
     total t = x + y, x follows a hypergeometric distribution, and a table's p-value is the probability
     of the tables with that total that are no more likely than it (scipy's definition)."""
     rejects = np.zeros((seeds_a + 1, seeds_b + 1), bool)
-    for total in range(seeds_a + seeds_b + 1):
+    totals = np.arange(seeds_a + seeds_b + 1)
+    # every total's probabilities in one call: scipy's per-call overhead, not the arithmetic, is the cost
+    pmfs = scipy.stats.hypergeom.pmf(np.arange(seeds_a + 1), seeds_a + seeds_b, totals[:, None], seeds_a)
+    for total in totals:
         x = np.arange(max(0, total - seeds_b), min(total, seeds_a) + 1)
-        pmf = scipy.stats.hypergeom.pmf(x, seeds_a + seeds_b, total, seeds_a)
+        pmf = pmfs[total, x]
         p = (pmf[None, :] <= pmf[:, None] * _RELATIVE_TOLERANCE) @ pmf  # row i: tables no likelier than i
         rejects[x, total - x] = p <= alpha
     return rejects

@@ -1,0 +1,169 @@
+"""The report's figures (matplotlib, files only): IQM curves with their CI bands, and the maze with
+AuxSS's start-state probabilities painted on the candidate demo states.
+
+`curves_figure` and `maze_figure` return a figure; `save_figure` writes it as PNG and PDF, each
+atomically and with no date in it, so the same data gives the same bytes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+
+from lava_bridge_mj.eval.aggregate import Curve, Group, RunRecord
+from lava_bridge_mj.eval.report_groups import STANDARD_DEMOS, is_offline
+
+METRIC_TITLES = {"train_return": "training return", "success_p0": "success from p0 (ID)",
+                 "success_ood": "success from ood (OOD)"}
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")  # files only, never a window
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _style(groups: list[Group]) -> dict[str, dict]:
+    """Colour by method (the same in every figure), line style by demo set, then by variant."""
+    from lava_bridge_mj.eval.config import METHODS
+
+    plt = _pyplot()
+    palette = plt.get_cmap("tab10").colors
+    variant_styles = (":", "-.", (0, (5, 1, 1, 1)))
+    order = {method: i for i, method in enumerate(METHODS)}
+    styles, seen = {}, {}
+    for group in groups:
+        index = order.get(group.method, len(order))
+        key = (group.method, group.demos)
+        variant = seen.get(key, 0)
+        seen[key] = variant + 1
+        base = "-" if group.demos == STANDARD_DEMOS else "--"
+        styles[group.label] = {"color": palette[index % len(palette)],
+                               "linestyle": base if variant == 0 else variant_styles[(variant - 1) % 3]}
+    return styles
+
+
+def _legend_label(group: Group) -> str:
+    suffix = ", gradient steps" if is_offline(group) else ""
+    return f"{group.label} (n={len(group.runs)}{suffix})"
+
+
+def curves_figure(groups: list[Group], curves: dict[str, dict[str, Curve]], title: str):
+    """Three panels (training return, success from p0, from ood): IQM lines with CI bands per group."""
+    plt = _pyplot()
+    styles = _style(groups)
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.2), constrained_layout=True)
+    for ax, metric in zip(axes, ("train_return", "success_p0", "success_ood")):
+        for group in groups:
+            curve, style = curves[group.label][metric], styles[group.label]
+            ax.plot(curve.steps, curve.iqm, label=_legend_label(group), linewidth=1.8, **style)
+            ax.fill_between(curve.steps, curve.low, curve.high, color=style["color"], alpha=0.18, linewidth=0)
+        ax.set_title(METRIC_TITLES[metric])
+        ax.set_xlabel("steps")
+        ax.grid(alpha=0.3)
+        if metric.startswith("success"):
+            ax.set_ylim(-0.03, 1.03)
+            ax.set_ylabel("task completion rate (IQM)")
+        else:
+            ax.set_ylabel("mean episode return (IQM)")
+    handles, labels = axes[0].get_legend_handles_labels()
+    columns = max(1, min(4, len(labels), 190 // (max(map(len, labels)) + 8)))  # about 190 characters fit a row
+    fig.legend(handles, labels, loc="outside lower center", ncol=columns, fontsize=8, frameon=False)
+    fig.suptitle(title)
+    return fig
+
+
+def draw_maze(ax, layout) -> None:
+    """The maze from above: floor, outer walls, lava pits, goal, p0 blobs (green), ood spots (blue)."""
+    from matplotlib.patches import Circle, Rectangle
+
+    def box(b, **style):
+        ax.add_patch(Rectangle((b.x - b.half_x, b.y - b.half_y), 2 * b.half_x, 2 * b.half_y, **style))
+
+    hx, hy = layout.half_extent
+    ax.add_patch(Rectangle((-hx, -hy), 2 * hx, 2 * hy, facecolor="#f2efe8", edgecolor="none", zorder=0))
+    for wall in layout.walls.values():
+        box(wall, facecolor="#4d4d4d", edgecolor="none", zorder=1)
+    for pit in layout.lava_pits.values():
+        box(pit, facecolor="#e8571e", edgecolor="none", zorder=1, label="lava")
+    for disc in layout.p0_blobs:
+        ax.add_patch(Circle(disc[:2], disc.radius, facecolor="#2ca02c", alpha=0.55, zorder=2, label="p0"))
+    for disc in layout.ood_spots:
+        ax.add_patch(Circle(disc[:2], disc.radius, facecolor="#1f5fd0", alpha=0.55, zorder=2, label="ood"))
+    ax.add_patch(Circle(layout.goal, layout.goal_radius, facecolor="none", edgecolor="#b30000", linewidth=2, zorder=2))
+    ax.plot(*layout.goal, marker="x", color="#b30000", markersize=8, zorder=2, label="goal")
+    t = layout.wall_thickness
+    ax.set_xlim(-hx - t, hx + t)
+    ax.set_ylim(-hy - t, hy + t)
+    ax.set_aspect("equal")
+    ax.set_xticks([])
+    ax.set_yticks([])
+
+
+def maze_figure(layout, states: np.ndarray | None, weights: list[tuple[float, float, np.ndarray]], caption: str):
+    """The maze with the candidate states, then one panel per (step, p0 success, probabilities) with the
+    probabilities painted on the states, relative to uniform (1 = uniform sampling)."""
+    plt = _pyplot()
+    from matplotlib.colors import LogNorm
+
+    rows = 1 + math.ceil(len(weights) / 2)
+    fig = plt.figure(figsize=(12, 2.7 * rows + 0.6), constrained_layout=True)
+    grid = fig.add_gridspec(rows, 2)
+    top = fig.add_subplot(grid[0, :])
+    draw_maze(top, layout)
+    if states is not None:
+        top.scatter(states[:, 0], states[:, 1], s=9, color="black", zorder=3, label="demo states")
+    handles, labels = top.get_legend_handles_labels()
+    unique = dict(zip(labels, handles))
+    top.legend(unique.values(), unique.keys(), loc="upper center", bbox_to_anchor=(0.5, -0.02), ncol=5, fontsize=8,
+               frameon=False)
+    top.set_title(caption, fontsize=10)
+    if weights:
+        relative = [p * len(p) for _, _, p in weights]
+        positive = np.concatenate(relative)
+        positive = positive[positive > 0]
+        norm = LogNorm(vmin=positive.min(), vmax=max(positive.max(), positive.min() * 1.01))
+        for i, ((step, success, _), rel) in enumerate(zip(weights, relative)):
+            ax = fig.add_subplot(grid[1 + i // 2, i % 2])
+            draw_maze(ax, layout)
+            order = np.argsort(rel)  # the most likely starts drawn last, on top
+            points = ax.scatter(states[order, 0], states[order, 1], c=np.clip(rel[order], norm.vmin, None), s=14,
+                                cmap="viridis", norm=norm, zorder=3, edgecolors="none")
+            ax.set_title(f"step {step:,.0f} (p0 success {success:.2f})", fontsize=9)
+        fig.colorbar(points, ax=fig.axes[1:], shrink=0.8,
+                     label="start probability x number of states (1 = uniform)")
+    return fig
+
+
+def save_figure(fig, out: Path, name: str) -> list[Path]:
+    """`name`.png and `name`.pdf in `out`, each written atomically."""
+    from lava_bridge_mj.eval.atomic import atomic_write
+
+    paths = []
+    # no creation date in the PDF: the same data must give the same bytes, or every `make report`
+    # shows every figure as changed
+    metadata = {"png": None, "pdf": {"CreationDate": None}}
+    for kind in ("png", "pdf"):
+        path = out / f"{name}.{kind}"
+        atomic_write(path, lambda f: fig.savefig(f, format=kind, dpi=130, metadata=metadata[kind]))
+        paths.append(path)
+    _pyplot().close(fig)
+    return paths
+
+
+def maze_layout(run: RunRecord):
+    """The maze of the run's env settings; ValueError naming its config.json when they make none."""
+    import lava_bridge_mj
+
+    fields = {f.name for f in dataclasses.fields(lava_bridge_mj.Layout)}
+    env = run.config.get("env", {})
+    try:  # the task's layout with any layout field the run's env settings change
+        return dataclasses.replace(lava_bridge_mj.task_layout(run.task), **{k: v for k, v in env.items() if k in fields})
+    except (AttributeError, TypeError, ValueError) as error:
+        raise ValueError(f"{run.path / 'config.json'}: its env settings make no maze ({error})") from None

@@ -1,0 +1,159 @@
+"""The report's Markdown tables, each a list of lines: the runs, the last evaluation, the late-training
+window, steps to threshold, reach counts, the pairwise tests and the paper's findings.
+
+Each takes the groups of one task (and the curves or settings it needs) and returns the table's
+lines, text and rows; eval/aggregate.py and eval/statistics.py hold the arithmetic.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from lava_bridge_mj.eval import statistics as stats
+from lava_bridge_mj.eval.aggregate import Curve, Group, late_means, steps_to_threshold
+from lava_bridge_mj.eval.findings import check_findings, common_step, demo_size_rows, variant_rows
+from lava_bridge_mj.eval.report_groups import comparison_pairs
+
+
+def _interval(curve: Curve, digits: int = 2) -> str:
+    if not len(curve.steps) or not np.isfinite(curve.iqm[-1]):
+        return "-"
+    return f"{curve.iqm[-1]:.{digits}f} [{curve.low[-1]:.{digits}f}, {curve.high[-1]:.{digits}f}]"
+
+
+def _steps(value: float) -> str:
+    return f"{value:,.0f}" if math.isfinite(value) else "not reached"
+
+
+def runs_table(groups: list[Group]) -> list[str]:
+    lines = ["| group | seeds | evaluations used (last step) |", "|---|---|---:|"]
+    for g in groups:
+        steps = g.steps
+        ragged = "" if len(set(g.last_steps)) == 1 else \
+            f"; seeds stop at {min(g.last_steps):,.0f}-{max(g.last_steps):,.0f}, later evaluations not shown"
+        last = f"{steps[-1]:,.0f}" if len(steps) else "none in common"
+        lines.append(f"| {g.label} | {len(g.runs)}: {', '.join(map(str, g.seeds))} | {len(steps)} ({last}{ragged}) |")
+    return lines
+
+
+def last_evaluation_table(groups: list[Group], curves: dict[str, dict[str, Curve]]) -> list[str]:
+    lines = ["IQM [95% CI] across seeds at the last step all of a group's seeds have.", "",
+             "| group | seeds | step | success from p0 | success from ood | training return |",
+             "|---|---:|---:|---:|---:|---:|"]
+    for g in groups:
+        c = curves[g.label]
+        step = f"{c['success_p0'].steps[-1]:,.0f}" if len(c["success_p0"].steps) else "-"
+        lines.append(f"| {g.label} | {len(g.runs)} | {step} | {_interval(c['success_p0'])} | "
+                     f"{_interval(c['success_ood'])} | {_interval(c['train_return'], 3)} |")
+    return lines
+
+
+def late_table(groups: list[Group], reps: int) -> list[str]:
+    lines = [f"Each seed's mean over its evaluations in the last third of the group's steps (past two thirds of "
+             f"the last one), then the IQM [95% CI] across seeds: where a group ended up, without the swing of a "
+             f"single evaluation.", "",
+             "| group | seeds | evaluations (steps) | success from p0 | success from ood |", "|---|---:|---|---:|---:|"]
+    for g in groups:
+        late = late_means(g, ("success_p0", "success_ood"), reps=reps)
+        window = late["success_p0"].steps
+        steps = f"{len(window)} ({window[0]:,.0f}-{window[-1]:,.0f})" if len(window) else "-"
+        cells = [f"{m.iqm:.2f} [{m.low:.2f}, {m.high:.2f}]" if math.isfinite(m.iqm) else "-" for m in late.values()]
+        lines.append(f"| {g.label} | {len(g.runs)} | {steps} | {' | '.join(cells)} |")
+    return lines
+
+
+def threshold_table(groups: list[Group], threshold: float) -> list[str]:
+    lines = ["Per seed, the first evaluation at or above the threshold. Median and IQM are over all seeds, a seed "
+             "that never got there counting as infinitely late: they read *not reached* when such seeds reach the "
+             "middle of the distribution.", "",
+             "| group | reached | median | IQM | per seed (seed: step) |", "|---|---:|---:|---:|---|"]
+    for g in groups:
+        t = steps_to_threshold(g, threshold)
+        per_seed = ", ".join(f"{seed}: {_steps(step) if math.isfinite(step) else 'never'}"
+                             for seed, step in t.per_seed.items())
+        lines.append(f"| {g.label} | {t.reached} of {len(t.per_seed)} | {_steps(t.median)} | {_steps(t.iqm)} | "
+                     f"{per_seed} |")
+    return lines
+
+
+def _ci(reach: stats.ReachCount) -> str:
+    return f"{reach.reached} of {reach.seeds} [{reach.low:.2f}, {reach.high:.2f}]"
+
+
+def _p(raw: float, adjusted: float) -> str:
+    return f"{raw:.3g} ({adjusted:.3g})" if math.isfinite(raw) else "-"
+
+
+def reach_table(groups: list[Group], threshold: float) -> list[str]:
+    lines = [f"Per group, the seeds whose success from p0 reached {threshold:g} at some evaluation, with the exact "
+             f"(Clopper-Pearson) {stats.CONFIDENCE:.0%} interval of the reach rate, and the area under each seed's "
+             f"success-from-p0 curve divided by the steps it spans (1 = success 1.0 at every evaluation), averaged "
+             f"over seeds.", "",
+             "| group | up to step | reached [95% CI of the rate] | area under the success curve |",
+             "|---|---:|---:|---:|"]
+    for g in groups:
+        outcomes = stats.seed_outcomes(g, threshold)
+        if outcomes is None:
+            lines.append(f"| {g.label} | - | - | - |")
+            continue
+        lines.append(f"| {g.label} | {outcomes.step:,.0f} | {_ci(outcomes.reach)} | {outcomes.auc.mean():.2f} |")
+    return lines
+
+
+def pairwise_section(groups: list[Group], threshold: float) -> list[str]:
+    """The pairwise table: every test of eval/statistics.py for each of `comparison_pairs`."""
+    compared, skipped = [], []
+    for a, b in comparison_pairs(groups):
+        until = min(a.steps[-1], b.steps[-1]) if len(a.steps) and len(b.steps) else None
+        outcomes = [stats.seed_outcomes(g, threshold, until) for g in (a, b)] if until is not None else [None]
+        if None in outcomes:
+            skipped.append(f"{a.label} against {b.label}")
+            continue
+        compared.append((a, b, stats.compare(*outcomes)))
+    lines = [f"Each pair up to the last step both groups have. Two-sided p-values, raw and (in brackets) "
+             f"Holm-adjusted across the {len(compared)} pairs of this table, one family per column: Fisher's exact "
+             f"test on the reach counts; Mann-Whitney U on the steps to {threshold:g}, a seed that never got there "
+             f"tied last; permutation tests of the difference in mean final and late-window success from p0 "
+             f"(the last third of the steps). Rank and permutation p-values use every split of the seeds when there "
+             f"are at most {stats.PERMUTATIONS:,}, else {stats.PERMUTATIONS:,} random ones (seed "
+             f"{stats.PERMUTATION_SEED}). P(A > B) is rliable's probability of improvement on late-window success. "
+             f"Power is that of Fisher's test at {stats.ALPHA:g} with these seeds if the observed reach rates were "
+             f"the true ones; seeds needed is the fewest seeds per group that give {stats.POWER:.0%} power there "
+             f"(exact, by enumerating the binomial outcomes; '> {stats.MAX_SEEDS}' beyond); both read '-' when the "
+             f"observed rates are equal. The verdict names each test that rejects at {stats.ALPHA:g} after the "
+             f"correction, and is *not enough seeds to decide* when none does: the groups are then not ranked. A "
+             f"group of one seed gets no rank or permutation test ('-')."]
+    if not compared:
+        return lines + ["", "*No pairs to compare here.*"]
+    needed = stats.seeds_needed(0.5, 0.8)
+    lines[0] += (f" For reference, a reach rate of 0.8 against 0.5 needs {needed} seeds per group "
+                 f"for {stats.POWER:.0%} power." if needed else "")
+    lines += ["", "| A | B | up to step | reached A, B | reach p | steps p | final p | late p | P(A > B) | power | "
+                  "seeds needed | verdict |", "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
+    for (a, b, c), adjusted in zip(compared, stats.holm_by_test([c for _, _, c in compared])):
+        equal = c.a.reach.rate == c.b.reach.rate  # no difference to detect
+        power = "-" if equal else f"{c.power:.2f}"
+        needed = "-" if equal else str(c.seeds_needed) if c.seeds_needed is not None else f"> {stats.MAX_SEEDS}"
+        cells = [a.label, b.label, f"{c.a.step:,.0f}", f"{c.a.reach.reached}/{c.a.reach.seeds}, "
+                 f"{c.b.reach.reached}/{c.b.reach.seeds}", *(_p(c.p[t], adjusted[t]) for t in stats.TESTS),
+                 f"{c.improvement:.2f}", power, needed, stats.decision(c, adjusted, a.label, b.label)]
+        lines.append("| " + " | ".join(cells) + " |")
+    if skipped:
+        lines += ["", f"*Not compared (no evaluation step in common): {'; '.join(skipped)}.*"]
+    return lines
+
+
+def findings_section(groups: list[Group], heading: str = "##") -> list[str]:
+    step = common_step(groups)
+    cut = f" Online methods are compared up to step {step:,.0f}, the last that all of them have." if step else ""
+    lines = ["Each claim checked against the fixed criterion written in eval/findings.py (default "
+             f"configurations only; variants are the ablation table's).{cut}", "",
+             "| # | claim | measured | verdict |", "|---:|---|---|---|"]
+    lines += [f"| {f.number} | {f.claim} | {f.measured} | **{f.verdict}** |" for f in check_findings(groups)]
+    for title, rows in (("Demo-size study (finding 7): 0.5K vs 7.5K", demo_size_rows(groups)),
+                        ("AuxSS ablations (finding 8)", variant_rows(groups))):
+        lines.extend(["", f"{heading}# {title}", ""])
+        lines.extend(rows or ["*No runs for this table here.*"])
+    return lines
