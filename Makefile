@@ -10,11 +10,20 @@ export MUJOCO_GL ?= egl
 
 .PHONY: run expert-video task-pictures test bench report setup gl clean
 
-# The main job: AuxSS on 5 seeds trained together (about 15 min on 2 cores), then a summary table.
-# --resume makes it safe to run again: a finished batch is left as it is, an interrupted one continues.
+# The main job: what the package is for, AuxSS against SAC from p0 on the same 5 seeds (80,000 steps, as
+# one sweep of two 5-seed jobs, one per core; about 20 min on an idle 2-core machine), then the report
+# (figures, per-seed reach counts, the pairwise tests), its two comparison tables printed, and a
+# rollout video of AuxSS's seed 0. Safe to run again: the sweep skips finished runs and resumes others.
+MAIN_STEPS ?= 80000
+MAIN_OUT ?= runs/main
 run: setup
-	$(BIN)/lava-bridge-bench --method auxss --seeds 0-4 --threads 2 --out runs/auxss --resume
-	$(BIN)/python -m lava_bridge_mj.eval.summary runs/auxss
+	$(BIN)/lava-bridge-bench sweep --methods auxss,sac --seeds 0-4 --steps $(MAIN_STEPS) --eval-every $$(( $(MAIN_STEPS) / 8 )) \
+	    --workers 2 --out $(MAIN_OUT)
+	$(BIN)/lava-bridge-bench report $(MAIN_OUT) --out $(MAIN_OUT)/report
+	$(BIN)/lava-bridge-bench video $(MAIN_OUT)/auxss-d500/seed0 --episodes 1
+	@awk '/^## (Seeds reaching|Pairwise tests)/ {show = 1} /^## / && !/^## (Seeds reaching|Pairwise tests)/ {show = 0} show' \
+	    $(MAIN_OUT)/report/report.md
+	@echo "report: $(MAIN_OUT)/report/report.md (figures beside it); video: $(MAIN_OUT)/auxss-d500/seed0/rollouts.mp4"
 
 expert-video: setup
 	$(BIN)/python -m lava_bridge_mj.eval.video --expert --out runs/expert.mp4

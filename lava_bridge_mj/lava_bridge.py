@@ -23,6 +23,11 @@ WRAPPER_RESET_OPTION_KEYS = ("minari_autoseed",)
 RENDER_MODES = ("rgb_array",)
 
 
+def _from_task(name: str, doc: str) -> property:
+    """A read-only property of the env that is its task's attribute `name`."""
+    return property(lambda self: getattr(self.task, name), doc=doc)
+
+
 class LavaBridgeEnv(gymnasium.Env):
     """A point mass in a two-room maze joined by a narrow bridge over lava.
 
@@ -105,46 +110,15 @@ class LavaBridgeEnv(gymnasium.Env):
         self.action_space = self.task.action_space
         self._renderer = None
 
-    # --- the task's parts, read from it --------------------------------------------------------
-    @property
-    def layout(self) -> Layout:
-        """The geometry and physics this env was built from."""
-        return self.task.layout
-
-    @property
-    def model(self) -> mujoco.MjModel:
-        """The compiled MjModel (the task's)."""
-        return self.task.model
-
-    @property
-    def frame_skip(self) -> int:
-        """Physics steps per env step."""
-        return self.task.frame_skip
-
-    @property
-    def dt(self) -> float:
-        """Seconds of simulated time per env step."""
-        return self.task.dt
-
-    @property
-    def goal_reward(self) -> float:
-        """The reward on reaching the goal."""
-        return self.task.goal_reward
-
-    @property
-    def lava_reward(self) -> float:
-        """The reward on touching lava."""
-        return self.task.lava_reward
-
-    @property
-    def step_reward(self) -> float:
-        """The reward on every other step."""
-        return self.task.step_reward
-
-    @property
-    def start_distributions(self) -> dict:
-        """Start distribution by name ('p0', 'ood')."""
-        return self.task.start_distributions
+    # --- the task's parts, read from it (read-only: the task is shared with the vector env) ------
+    layout = _from_task("layout", "The geometry and physics this env was built from (a Layout).")
+    model = _from_task("model", "The compiled MjModel (the task's).")
+    frame_skip = _from_task("frame_skip", "Physics steps per env step.")
+    dt = _from_task("dt", "Seconds of simulated time per env step.")
+    goal_reward = _from_task("goal_reward", "The reward on reaching the goal.")
+    lava_reward = _from_task("lava_reward", "The reward on touching lava.")
+    step_reward = _from_task("step_reward", "The reward on every other step.")
+    start_distributions = _from_task("start_distributions", "Start distribution by name ('p0', 'ood').")
 
     # --- named physics accessors ---------------------------------------------------------------
     def lava_contact(self, data: mujoco.MjData | None = None) -> bool:
