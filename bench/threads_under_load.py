@@ -1,5 +1,5 @@
-"""Training speed of `make run`'s command on an idle machine and beside one CPU-bound process, with
-OpenMP's waiting threads sleeping (OMP_WAIT_POLICY=PASSIVE, the CLI's default) and with libgomp's
+"""Training speed of the quick AuxSS batch (5 seeds, --threads 2) on an idle machine and beside one
+CPU-bound process, with OpenMP's waiting threads sleeping (OMP_WAIT_POLICY=PASSIVE, the CLI's default) and with libgomp's
 own default (spin, then sleep: what the CLI did before it set a policy), side by side in one run.
 
 Each case runs `lava-bridge-bench --method auxss --seeds 0-4 --threads 2` (the main job's batch) with
