@@ -1,11 +1,12 @@
 """Nothing lost on interruption, bad input refused: real processes killed and resumed.
 
-Every run here is a `python -m lava_bridge_mj.eval.cli` child process with a tiny configuration, so
-killed, signalled and resumed runs are compared with an uninterrupted run made the same way; that run
-is made once (`reference_run`) and tests that damage a finished run work on a copy of it. Commands
-refused before training starts (bad configuration files, a resume refused for its checkpoint's format
-or its configuration) take the child's code path through `cli.main` in this process, without a
-child's torch start-up.
+Every run that is killed or signalled is a `python -m lava_bridge_mj.eval.cli` child process with a
+tiny configuration, compared with an uninterrupted run made the same way; that run is made once
+(`reference_run`) and tests that damage a finished run work on a copy of it. Where a trial interrupts a
+run several times, each resume that is interrupted in turn is a real process too, and the run goes on
+from where the one before stopped. Everything else (the last resume to the end, runs that are not
+interrupted, commands refused before training starts) takes the child's code path through `cli.main`
+in this process, without a child's torch start-up.
 """
 
 import csv
@@ -27,7 +28,9 @@ TINY = {"steps": 1500, "eval_every": 250, "eval_episodes": 2, "demo_subset": 20,
         "sac": {"hidden_sizes": [16, 16], "batch_size": 32, "buffer_size": 500, "learning_starts": 100}}
 KILL_AFTER_CHECKPOINTS = (1, 3)
 KILL_AFTER_SECONDS = (0.5, 4.0)  # before any checkpoint (likely), and at an arbitrary moment
-"""Kill-and-resume trials: the README counts them (4 SIGKILL + 1 SIGTERM + 1 SIGINT, and 1 SIGKILL of a batch)."""
+"""Kill-and-resume trials: the README counts them (4 SIGKILL + 1 SIGTERM + 1 SIGINT, and 1 SIGKILL of a batch).
+Each tuple is one run, interrupted at each moment in turn: the first by the run's own process, the next
+by the real process that resumed it."""
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +49,7 @@ def command(config_file, out, *extra):
 
 
 def exit_code_in_process(argv):
-    """The exit code of `python -m lava_bridge_mj.eval.cli ARGV`, for a command refused before training."""
+    """The exit code of `python -m lava_bridge_mj.eval.cli ARGV`, run in this process."""
     try:
         return cli.main(argv)
     except SystemExit as exit_:  # argparse's usage errors
@@ -85,7 +88,8 @@ def checkpoint_mtime(out):
 
 
 def wait_for_checkpoints(process, out, count, timeout=120):
-    seen, last = 0, None
+    """Wait until `process` has written `count` checkpoints after this call."""
+    seen, last = 0, checkpoint_mtime(out)
     deadline = time.monotonic() + timeout
     while seen < count:
         assert process.poll() is None, "the run ended before it was interrupted"
@@ -97,62 +101,75 @@ def wait_for_checkpoints(process, out, count, timeout=120):
 
 
 def resume_to_the_end(config_file, out, *extra):
-    result = subprocess.run(command(config_file, out, "--resume", *extra), capture_output=True, text=True)
-    assert result.returncode == 0, result.stderr
+    """`--resume` to the end, in this process: what a child would do after its torch start-up."""
+    assert exit_code_in_process(arguments(config_file, out, "--resume", *extra)) == 0
 
 
-@pytest.mark.parametrize("checkpoints", KILL_AFTER_CHECKPOINTS)
-def test_sigkill_after_checkpoints_then_resume_matches_the_uninterrupted_run(config_file, reference, tmp_path, checkpoints):
+def resumed_or_new(config_file, out, trial, *extra):
+    """The command of a run's `trial`-th process: the first starts it, each later one resumes it."""
+    return command(config_file, out, *(("--resume",) if trial else ()), *extra)
+
+
+def test_sigkill_after_checkpoints_then_resume_matches_the_uninterrupted_run(config_file, reference, tmp_path):
+    """Killed after its first checkpoint; the resuming process killed when the run has written its third."""
     out = tmp_path / "run"
-    process = subprocess.Popen(command(config_file, out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    wait_for_checkpoints(process, out, checkpoints)
-    process.kill()
-    process.wait()
-    rows_at_kill = metrics(out)  # whatever was written is complete and parseable
-    assert all(len(row) == len(reference[0]) for row in rows_at_kill)
-    assert rows_at_kill == reference[: len(rows_at_kill)], "rows written before the kill differ"
+    written = 0
+    for trial, checkpoints in enumerate(KILL_AFTER_CHECKPOINTS):
+        process = subprocess.Popen(resumed_or_new(config_file, out, trial), stdout=subprocess.DEVNULL,
+                                   stderr=subprocess.DEVNULL)
+        wait_for_checkpoints(process, out, checkpoints - written)
+        process.kill()
+        process.wait()
+        written = checkpoints
+        rows_at_kill = metrics(out)  # whatever was written is complete and parseable
+        assert all(len(row) == len(reference[0]) for row in rows_at_kill)
+        assert rows_at_kill == reference[: len(rows_at_kill)], f"rows written before kill {trial + 1} differ"
     resume_to_the_end(config_file, out)
     assert metrics(out) == reference
     assert not list(out.glob(".*.tmp*")), "a temporary file was left behind"
 
 
-@pytest.mark.parametrize("seconds", KILL_AFTER_SECONDS)
-def test_sigkill_at_an_arbitrary_moment_then_resume_matches(config_file, reference, tmp_path, seconds):
+def test_sigkill_at_an_arbitrary_moment_then_resume_matches(config_file, reference, tmp_path):
+    """Killed 0.5 s after its process started; the resuming process killed 4 s after it started."""
     out = tmp_path / "run"
-    process = subprocess.Popen(command(config_file, out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    time.sleep(seconds)
-    process.kill()
-    process.wait()
-    if (out / "metrics.csv").exists():
-        assert metrics(out) == reference[: len(metrics(out))]
+    for trial, seconds in enumerate(KILL_AFTER_SECONDS):
+        process = subprocess.Popen(resumed_or_new(config_file, out, trial), stdout=subprocess.DEVNULL,
+                                   stderr=subprocess.DEVNULL)
+        time.sleep(seconds)
+        process.kill()
+        process.wait()
+        if (out / "metrics.csv").exists():
+            assert metrics(out) == reference[: len(metrics(out))]
     resume_to_the_end(config_file, out)
     assert metrics(out) == reference
 
 
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
-def test_a_signal_stops_cleanly_with_a_checkpoint_and_resume_continues(config_file, reference, tmp_path, sig):
+def test_a_signal_stops_cleanly_with_a_checkpoint_and_resume_continues(config_file, reference, tmp_path):
+    """SIGTERM after the run's first checkpoint; SIGINT to the resuming process after its first."""
     out = tmp_path / "run"
-    process = subprocess.Popen(command(config_file, out), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    wait_for_checkpoints(process, out, 1)
-    before = checkpoint_mtime(out)
-    process.send_signal(sig)
-    _, stderr = process.communicate(timeout=60)
-    assert process.returncode == 128 + sig, stderr
-    assert "after writing a checkpoint" in stderr and "--resume" in stderr
-    assert checkpoint_mtime(out) != before, "the stop did not write a fresh checkpoint"
+    for trial, sig in enumerate((signal.SIGTERM, signal.SIGINT)):
+        process = subprocess.Popen(resumed_or_new(config_file, out, trial), stdout=subprocess.DEVNULL,
+                                   stderr=subprocess.PIPE, text=True)
+        wait_for_checkpoints(process, out, 1)
+        before = checkpoint_mtime(out)
+        process.send_signal(sig)
+        _, stderr = process.communicate(timeout=60)
+        assert process.returncode == 128 + sig, stderr
+        assert "after writing a checkpoint" in stderr and "--resume" in stderr
+        assert checkpoint_mtime(out) != before, f"the stop by {sig.name} did not write a fresh checkpoint"
     resume_to_the_end(config_file, out)
     assert metrics(out) == reference
 
 
-def test_a_second_process_cannot_write_a_run_directory_in_use(config_file, tmp_path):
+def test_a_second_process_cannot_write_a_run_directory_in_use(config_file, tmp_path, capsys):
     out = tmp_path / "run"
     first = subprocess.Popen(command(config_file, out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         wait_for_checkpoints(first, out, 1)
-        second = subprocess.run(command(config_file, out, "--resume"), capture_output=True, text=True)
-        assert second.returncode == 2
-        assert "being written by another process" in second.stderr
-        assert "Traceback" not in second.stderr
+        assert exit_code_in_process(arguments(config_file, out, "--resume")) == 2  # this process is the second
+        stderr = capsys.readouterr().err
+        assert "being written by another process" in stderr
+        assert "Traceback" not in stderr
     finally:
         first.kill()
         first.wait()
@@ -180,13 +197,15 @@ def test_bad_config_files_are_refused_without_writing(tmp_path, capsys, content,
     assert not out.exists()
 
 
-def test_a_corrupt_checkpoint_falls_back_and_two_are_refused_keeping_earlier_results(config_file, reference, tmp_path):
+def test_a_corrupt_checkpoint_falls_back_and_two_are_refused_keeping_earlier_results(config_file, reference, tmp_path,
+                                                                                      capsys):
     out = tmp_path / "run"
-    subprocess.run(command(config_file, out, "--steps", "1000"), check=True, capture_output=True)
+    assert exit_code_in_process(arguments(config_file, out, "--steps", "1000")) == 0
     (out / "checkpoint.pt").write_bytes(b"not a checkpoint")
-    result = subprocess.run(command(config_file, out, "--resume"), capture_output=True, text=True)
-    assert result.returncode == 0, result.stderr
-    assert "warning:" in result.stderr and "checkpoint.pt is damaged or not a torch file" in result.stderr
+    capsys.readouterr()
+    assert exit_code_in_process(arguments(config_file, out, "--resume")) == 0
+    stderr = capsys.readouterr().err
+    assert "warning:" in stderr and "checkpoint.pt is damaged or not a torch file" in stderr
     assert metrics(out) == reference
     for name in ("checkpoint.pt", "checkpoint.prev.pt"):
         (out / name).write_bytes(b"not a checkpoint")
@@ -219,12 +238,13 @@ def test_resume_with_another_configuration_is_refused(config_file, reference_run
     assert (out / "metrics.csv").read_text() == kept
 
 
-def test_overwrite_replaces_the_previous_run(config_file, reference, tmp_path):
-    out = tmp_path / "run"
-    subprocess.run(command(config_file, out, "--steps", "250"), check=True, capture_output=True)
-    assert len(metrics(out)) == 1
-    subprocess.run(command(config_file, out, "--overwrite"), check=True, capture_output=True)
-    assert metrics(out) == reference
+def test_overwrite_replaces_the_previous_run(config_file, reference_run, reference, tmp_path):
+    """The finished reference run replaced by a 250-step run: only the new run's row is left (a resume
+    would refuse the shorter run, an append would keep the old rows)."""
+    out = copy_of(reference_run, tmp_path)
+    assert len(metrics(out)) == len(reference) > 1
+    assert exit_code_in_process(arguments(config_file, out, "--steps", "250", "--overwrite")) == 0
+    assert metrics(out) == reference[:1]
 
 
 def test_a_killed_batch_resumes_and_each_seed_matches_its_single_seed_run(config_file, reference, tmp_path):
@@ -236,8 +256,7 @@ def test_a_killed_batch_resumes_and_each_seed_matches_its_single_seed_run(config
     wait_for_checkpoints(process, out / "seed1", 2)
     process.kill()
     process.wait()
-    result = subprocess.run([*batch, "--resume"], capture_output=True, text=True)
-    assert result.returncode == 0, result.stderr
+    assert exit_code_in_process(arguments(config_file, out, "--seeds", "0,1", "--resume")) == 0
     assert metrics(out / "seed0") == reference
     assert metrics(out / "seed1") != reference
 
@@ -267,27 +286,38 @@ def test_a_stop_before_the_first_evaluation_resumes(config_file, reference, tmp_
     assert f"--out {out}" in stderr and "--resume" in stderr
     resume_to_the_end(config_file, out, "--eval-every", "1500")
     full = tmp_path / "full"
-    subprocess.run(command(config_file, full, "--eval-every", "1500"), check=True, capture_output=True)
+    assert exit_code_in_process(arguments(config_file, full, "--eval-every", "1500")) == 0
     assert metrics(out) == metrics(full)
     assert (out / "checkpoint.pt").read_bytes() != b""
 
 
+def provenance_mtime(out):
+    try:
+        return os.stat(out / "provenance.json").st_mtime_ns
+    except FileNotFoundError:
+        return None
+
+
 def test_signals_at_seeded_random_moments_then_resume_match(config_file, reference, tmp_path):
     """SIGINT or SIGTERM at random moments of a run (a seeded draw over its whole length, training and
-    evaluation alike): each stops with a checkpoint, and the resumed run equals the uninterrupted one."""
-    rng = np.random.default_rng(17)
-    for trial, delay in enumerate(rng.uniform(0.0, 4.0, size=3)):
-        out = tmp_path / f"run{trial}"
-        process = subprocess.Popen(command(config_file, out), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                                   text=True)
-        wait_for(lambda: (out / "provenance.json").exists(), process, "training started")
+    evaluation alike): each stops with a checkpoint, the next moment falls in the process that resumed
+    it, and the run resumed to its end equals the uninterrupted one."""
+    moments = np.sort(np.random.default_rng(17).uniform(0.0, 4.0, size=3))  # seconds of training
+    out = tmp_path / "run"
+    for trial, delay in enumerate(np.diff(moments, prepend=0.0)):
+        session = provenance_mtime(out)  # each process that trains records its session when it starts
+        process = subprocess.Popen(resumed_or_new(config_file, out, trial), stdout=subprocess.DEVNULL,
+                                   stderr=subprocess.PIPE, text=True)
+        wait_for(lambda: provenance_mtime(out) != session, process, "training started")
         time.sleep(delay)
         process.send_signal((signal.SIGINT, signal.SIGTERM)[trial % 2])
         _, stderr = process.communicate(timeout=60)
         assert process.returncode in (0, 128 + signal.SIGINT, 128 + signal.SIGTERM), stderr
         assert "Traceback" not in stderr
-        resume_to_the_end(config_file, out)
-        assert metrics(out) == reference, f"trial {trial}: stopped {delay:.2f} s into training"
+        if process.returncode == 0:  # the run ended before this moment: so do the later ones
+            break
+    resume_to_the_end(config_file, out)
+    assert metrics(out) == reference, f"stopped {', '.join(f'{m:.2f}' for m in moments)} s into training"
 
 
 BATCH = {**TINY, "steps": 750, "eval_episodes": 10}
@@ -303,7 +333,7 @@ def batch_config(tmp_path_factory):
 @pytest.fixture(scope="module")
 def batch_reference(batch_config, tmp_path_factory):
     out = tmp_path_factory.mktemp("batch-reference")
-    subprocess.run(command(batch_config, out, "--seeds", "0,1"), check=True, capture_output=True)
+    assert exit_code_in_process(arguments(batch_config, out, "--seeds", "0,1")) == 0
     return [metrics(out / f"seed{s}") for s in (0, 1)]
 
 
@@ -323,8 +353,7 @@ def test_sigkill_of_a_batch_at_a_critical_moment_then_resume_matches(batch_confi
         if not second.exists():
             break
     assert not second.exists(), f"the kill came too late to be {moment}, three times"
-    result = subprocess.run([*batch, "--resume"], capture_output=True, text=True)
-    assert result.returncode == 0, result.stderr
+    assert exit_code_in_process(arguments(batch_config, out, "--seeds", "0,1", "--resume")) == 0
     assert [metrics(out / f"seed{s}") for s in (0, 1)] == batch_reference
     assert all((out / f"seed{s}" / "final.pt").exists() for s in (0, 1))
 

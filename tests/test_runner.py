@@ -88,10 +88,10 @@ def test_every_method_writes_a_complete_run_directory(trained, method):
     assert run.step == 300
 
 
-@pytest.mark.parametrize("method, steps", [("auxss", 600), ("sac", 1200)])  # p0 episodes run up to 500 steps
-def test_the_episode_log_accounts_for_every_training_step_and_start(tmp_path, method, steps):
+@pytest.mark.parametrize("method, steps", [("auxss", 700), ("sac", 1200)])  # p0 episodes run up to 500 steps
+def test_the_episode_log_accounts_for_every_training_step_and_start(trained, method, steps):
     config = tiny_config(method, steps=steps)
-    run = train(config, tmp_path, progress=False)
+    tmp_path, run = trained(config)
     with open(tmp_path / "episodes.csv") as f:
         log = list(csv.DictReader(f))
     assert list(log[0]) == list(EPISODE_FIELDS)
@@ -161,16 +161,16 @@ def test_a_finished_run_extended_to_more_steps_equals_one_trained_to_them(traine
     # the 300k-step rows of a 100k-step protocol run come from extending it, not retraining
     copy_run(trained(tiny_config(method, steps=300))[0], tmp_path / "extended")
     short_rows = metrics_without_wall_time(tmp_path / "extended")
-    extended = train(tiny_config(method, steps=700), tmp_path / "extended", resume=True, progress=False)
-    straight_dir, straight = trained(tiny_config(method, steps=700))
+    extended = train(tiny_config(method, steps=500), tmp_path / "extended", resume=True, progress=False)
+    straight_dir, straight = trained(tiny_config(method, steps=500))
 
     rows = metrics_without_wall_time(tmp_path / "extended")
     assert rows == metrics_without_wall_time(straight_dir)
-    assert rows[:len(short_rows)] == short_rows and len(rows) == 7
+    assert rows[:len(short_rows)] == short_rows and len(rows) == 5
     for name, tensor in straight.agent.actor.state_dict().items():
         assert torch.equal(tensor, extended.agent.actor.state_dict()[name]), name
-    assert json.loads((tmp_path / "extended/config.json").read_text())["steps"] == 700
-    assert torch.load(tmp_path / "extended/final.pt", weights_only=False)["step"] == 700
+    assert json.loads((tmp_path / "extended/config.json").read_text())["steps"] == 500
+    assert torch.load(tmp_path / "extended/final.pt", weights_only=False)["step"] == 500
 
 
 def test_provenance_records_each_training_session_with_the_strategy_settings(trained, tmp_path):
@@ -197,7 +197,7 @@ def test_provenance_records_each_training_session_with_the_strategy_settings(tra
     with pytest.raises(RunDirectoryError, match=r"already holds a run \(provenance.json\)"):
         train(config, tmp_path / "fresh", progress=False)
     assert json.loads((tmp_path / "fresh/provenance.json").read_text()) == sessions
-    train(config, tmp_path / "fresh", overwrite=True, progress=False)
+    train(dataclasses.replace(config, steps=100), tmp_path / "fresh", overwrite=True, progress=False)
     assert [s["from_step"] for s in json.loads((tmp_path / "fresh/provenance.json").read_text())] == [0]
     omega = tiny_config("omega_ss", steps=100, seed=7)
     train(omega, tmp_path / "omega", progress=False)
@@ -205,12 +205,12 @@ def test_provenance_records_each_training_session_with_the_strategy_settings(tra
         "k": 4, "rollouts": 32, "seed": 7, "clamp": 0.05}  # the rollouts are seeded with the run's seed
 
 
-def test_resume_refuses_a_damaged_provenance_record_and_changes_nothing(tmp_path):
-    train(tiny_config(steps=200), tmp_path, progress=False)
+def test_resume_refuses_a_damaged_provenance_record_and_changes_nothing(finished_run, tmp_path):
+    tmp_path = copy_run(finished_run, tmp_path / "run")
     (tmp_path / "provenance.json").write_text('{"from_step": 0}')
     before = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file() and p.name != ".lock"}
     with pytest.raises(ValueError, match=r"provenance.json is not a JSON list of training sessions"):
-        train(tiny_config(steps=300), tmp_path, resume=True, progress=False)
+        train(tiny_config(steps=400), tmp_path, resume=True, progress=False)
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file() and p.name != ".lock"} == before
 
 
@@ -302,13 +302,12 @@ def seed_files(directory):
 
 
 @pytest.mark.parametrize("method", ["auxss", "sac"])
-def test_a_seed_trained_in_a_batch_writes_what_it_writes_alone(tmp_path, method, one_torch_thread):
-    config = tiny_config(method, steps=400)
-    train(config, tmp_path / "alone", progress=False)
+def test_a_seed_trained_in_a_batch_writes_what_it_writes_alone(trained, tmp_path, method, one_torch_thread):
+    config = tiny_config(method, steps=300)  # seed 3
     dirs = [tmp_path / f"batch/seed{s}" for s in (1, 3, 4)]
     run = train(config, dirs, seeds=[1, 3, 4], progress=False)
     assert run.agent.seeds == (1, 3, 4)
-    alone, batched = seed_files(tmp_path / "alone"), seed_files(dirs[1])
+    alone, batched = seed_files(trained(config)[0]), seed_files(dirs[1])
     assert alone[0] == batched[0] and alone[3] == batched[3]
     np.testing.assert_array_equal(alone[1], batched[1])
     assert alone[2].keys() == batched[2].keys()
@@ -320,46 +319,58 @@ def test_a_seed_trained_in_a_batch_writes_what_it_writes_alone(tmp_path, method,
     assert seed_files(dirs[0])[0] != batched[0], "different seeds must give different results"
 
 
-def checkpoints_of_a_run_stopped_at(config, seeds, steps, directory):
-    """Per seed, the (latest, previous) checkpoints of `config` trained to `steps`, as `config` itself
-    would have written them on the way (same trajectory; only the configured length differs)."""
-    dirs = [directory / f"seed{s}" for s in seeds]
-    train(dataclasses.replace(config, steps=steps), dirs, seeds=seeds, progress=False)
-    pairs = []
-    for seed, d in zip(seeds, dirs):
-        states = [torch.load(d / name, weights_only=False) for name in ("checkpoint.pt", "checkpoint.prev.pt")]
-        for state in states:
-            state["config"] = dataclasses.replace(config, seed=seed).to_dict()
-        pairs.append(states)
-    return pairs
+BATCH_CONFIG = tiny_config("auxss", steps=400)
 
 
-def test_a_batch_resumes_when_a_kill_left_seeds_one_checkpoint_apart(tmp_path):
-    config = tiny_config("auxss", steps=500)
-    full_dirs = [tmp_path / f"full/seed{s}" for s in (0, 1)]
-    train(config, full_dirs, seeds=[0, 1], progress=False)
+@pytest.fixture(scope="module")
+def batch_stopped_at(tmp_path_factory):
+    """`batch_stopped_at(steps)`: the seed directories of BATCH_CONFIG's seeds 0 and 1 trained together
+    to `steps`, and per seed its (latest, previous) checkpoints as BATCH_CONFIG itself would have written
+    them on the way (same trajectory; only the configured length differs). Trained once per module for
+    each `steps`; tests only read the directories."""
+    batches = {}
 
-    # Killed between the two seeds' checkpoint writes at step 400: seed 0 has 400 (and 300 as prev),
-    # seed 1 still has 300 (and 200). The resume must continue both from 300.
-    ahead = checkpoints_of_a_run_stopped_at(config, [0, 1], 400, tmp_path / "at400")[0]
-    behind = checkpoints_of_a_run_stopped_at(config, [0, 1], 300, tmp_path / "at300")[1]
+    def get(steps):
+        if steps not in batches:
+            dirs = [tmp_path_factory.mktemp(f"batch-at-{steps}") / f"seed{s}" for s in (0, 1)]
+            train(dataclasses.replace(BATCH_CONFIG, steps=steps), dirs, seeds=[0, 1], progress=False)
+            batches[steps] = dirs
+        pairs = []
+        for seed, d in zip((0, 1), batches[steps]):
+            states = [torch.load(d / name, weights_only=False) for name in ("checkpoint.pt", "checkpoint.prev.pt")]
+            for state in states:
+                state["config"] = dataclasses.replace(BATCH_CONFIG, seed=seed).to_dict()
+            pairs.append(states)
+        return batches[steps], pairs
+
+    return get
+
+
+def test_a_batch_resumes_when_a_kill_left_seeds_one_checkpoint_apart(batch_stopped_at, tmp_path):
+    config = BATCH_CONFIG
+    full_dirs, _ = batch_stopped_at(config.steps)
+
+    # Killed between the two seeds' checkpoint writes at step 300: seed 0 has 300 (and 200 as prev),
+    # seed 1 still has 200 (and 100). The resume must continue both from 200.
+    ahead = batch_stopped_at(300)[1][0]
+    behind = batch_stopped_at(200)[1][1]
     dirs = [tmp_path / f"killed/seed{s}" for s in (0, 1)]
     for source, target, states in zip(full_dirs, dirs, (ahead, behind)):
         target.mkdir(parents=True)
         shutil.copy(source / "config.json", target / "config.json")
         for name, state in zip(("checkpoint.pt", "checkpoint.prev.pt"), states):
             torch.save(state, target / name)
-    assert [s["step"] for s in ahead + behind] == [400, 300, 300, 200]
+    assert [s["step"] for s in ahead + behind] == [300, 200, 200, 100]
     resumed = train(config, dirs, seeds=[0, 1], resume=True, progress=False)
-    assert resumed.step == 500
+    assert resumed.step == 400
     for source, target in zip(full_dirs, dirs):
         assert metrics_without_wall_time(target) == metrics_without_wall_time(source)
 
 
-def test_a_batch_refuses_seeds_whose_checkpoints_share_no_step(tmp_path):
-    config = tiny_config("auxss", steps=500)
-    early = checkpoints_of_a_run_stopped_at(config, [0], 200, tmp_path / "early")[0]
-    late = checkpoints_of_a_run_stopped_at(config, [1], 400, tmp_path / "late")[0]
+def test_a_batch_refuses_seeds_whose_checkpoints_share_no_step(batch_stopped_at, tmp_path):
+    config = BATCH_CONFIG
+    early = batch_stopped_at(200)[1][0]  # seed 0 at 200 (and 100)
+    late = batch_stopped_at(300)[1][1]  # seed 1 at 300 (and 200): only the latest is kept below
     dirs = [tmp_path / f"mixed/seed{s}" for s in (0, 1)]
     for seed, d, states in zip((0, 1), dirs, (early, late)):
         d.mkdir(parents=True)
