@@ -32,8 +32,10 @@ expert-video: setup
 task-pictures: setup
 	$(BIN)/python -m lava_bridge_mj.pictures --out docs/tasks.png
 
+# Two pytest workers (pytest-xdist), one per core; --dist loadfile keeps each test file in one worker,
+# so the runs a file's fixtures train once are shared by its tests, as in a serial run.
 test: setup
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n 2 --dist loadfile
 
 bench: setup
 	$(BIN)/python bench/env_throughput.py

@@ -71,6 +71,14 @@ def curves_figure(groups: list[Group], curves: dict[str, dict[str, Curve]], titl
             ax.set_ylim(-0.03, 1.03)
             ax.set_ylabel("task completion rate (IQM)")
         else:
+            # the sparse return is 1 at the goal and 0 otherwise: a fixed 0-1 axis, so that a wobble of
+            # 0.02 on a short run does not read as a steep drop; wider only for rewards that leave it
+            values = np.concatenate([np.ravel(getattr(curves[g.label][metric], part))
+                                     for g in groups for part in ("iqm", "low", "high")])
+            values = values[np.isfinite(values)]
+            low, high = (min(0.0, values.min()), max(1.0, values.max())) if values.size else (0.0, 1.0)
+            margin = 0.03 * (high - low)
+            ax.set_ylim(low - margin, high + margin)
             ax.set_ylabel("mean episode return (IQM)")
     handles, labels = axes[0].get_legend_handles_labels()
     columns = max(1, min(4, len(labels), 190 // (max(map(len, labels)) + 8)))  # about 190 characters fit a row

@@ -654,3 +654,22 @@ def test_the_maze_figure_of_a_task_draws_its_own_layout(tmp_path):
     [run] = aggregate.find_runs(tmp_path)
     assert report_figures.maze_layout(run) == lava_bridge_mj.task_layout("LavaBridgeTwoCrossings-v0")
     assert report_figures.maze_layout(run) != lava_bridge_mj.task_layout("LavaBridge-v0")
+
+
+@pytest.mark.parametrize("returns, limits", [
+    ((0.02, 0.03, 0.025), (-0.03, 1.03)),    # a short run's small returns on the metric's own 0-1 axis
+    ((-2.0, 0.5, 1.0), (-2.09, 1.09)),       # rewards that leave 0-1 (a lava penalty) widen it to the data
+])
+def test_the_training_return_axis_is_fixed_to_the_returns_range(tmp_path, returns, limits):
+    for seed in range(3):
+        write_run(tmp_path / "runs" / f"seed{seed}", seed=seed, p0=(0.0, 0.5, 1.0), train=returns)
+    [group] = aggregate.group_runs(aggregate.find_runs(tmp_path / "runs"))
+    curves = {group.label: aggregate.iqm_curves(group, reps=50)}
+    fig = report_figures.curves_figure([group], curves, "returns")
+    try:
+        axis = fig.axes[0]
+        assert axis.get_title() == "training return"
+        np.testing.assert_allclose(axis.get_ylim(), limits, atol=1e-9)
+        np.testing.assert_allclose(fig.axes[1].get_ylim(), (-0.03, 1.03))
+    finally:
+        report_figures._pyplot().close(fig)

@@ -181,7 +181,7 @@ def test_provenance_records_each_training_session_with_the_strategy_settings(tra
     goal = lava_bridge_mj.LavaBridgeEnv().layout.goal
     assert first["strategy"] == {"goal": [float(goal[0]), float(goal[1])], "temperature": 0.5,
                                  "temperature_growth": GoalDistSS(np.zeros((1, 4)), goal=(0, 0)).temperature_growth,
-                                 "max_temperature": 50.0}
+                                 "max_temperature": 50.0, "schedule": "episodes", "budget": None}
     assert first["code"]["lava_bridge_mj"] and first["code"]["torch"] == torch.__version__
 
     train(config, tmp_path, resume=True, progress=False)  # finished at its budget: trains nothing, records nothing
