@@ -212,12 +212,11 @@ class Run:
                 self.elapsed = time.perf_counter() - start_time
                 rows = self.evaluate()
                 returns = [r["train_return"] for r in rows if np.isfinite(r["train_return"])]
-                if rows and report is not None:
-                    report.evaluated(np.mean([r["success_p0"] for r in rows]), np.mean([r["success_ood"] for r in rows]))
                 if rows:
-                    bar.set_postfix(p0=f"{np.mean([r['success_p0'] for r in rows]):.2f}",
-                                    ood=f"{np.mean([r['success_ood'] for r in rows]):.2f}",
-                                    ret=f"{np.mean(returns):.2f}" if returns else "-")
+                    p0, ood = (np.mean([r[f"success_{start}"] for r in rows]) for start in ("p0", "ood"))
+                    bar.set_postfix(p0=f"{p0:.2f}", ood=f"{ood:.2f}", ret=f"{np.mean(returns):.2f}" if returns else "-")
+                    if report is not None:
+                        report.evaluated(p0, ood)
             if not self.active.any():
                 break  # every seed stopped: nothing left to train
             if evaluation_due or self.stop_signal is not None:
