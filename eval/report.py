@@ -12,6 +12,8 @@ as PNG and PDF (named TASK_NAME, with one part of report.md per task, when DIR h
     start_distributions  AuxSS, Omega-SS, U-SS and GoalDist-SS: the start-distribution study
     maze               the maze (walls, lava, goal, p0 blobs, ood spots, the candidate demo states) and
                        an AuxSS run's start-state probabilities on those states at a few evaluations
+    maze_reverse_ss    the same for a reverse_ss run (RFCL's reverse curriculum), when DIR has one: its
+                       start state on each demo episode moving back from the goal, then p0
 and report.md, which embeds the PNGs (relative links) with its tables: IQM and 95% CI at the last
 evaluation per group, the steps to p0 success >= 0.8 with how many seeds got there, the reach counts
 with exact intervals and the area under the success curve, and the pairwise tests of `comparison_pairs`
@@ -142,11 +144,18 @@ def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dic
     return warnings
 
 
+MAZE_STRATEGIES = {"auxss": "AuxSS", "reverse_ss": "reverse_ss"}
+"""The start strategies whose start-state probabilities the report paints on the maze, with their
+names in its text: AuxSS always (the paper's figure), RFCL's reverse curriculum when it has runs."""
+
+
 def _maze_section(groups: list[Group], threshold: float, where: str, out: Path, warnings: list[str],
-                  name: str = "maze") -> list[str]:
-    """Draw NAME.png/pdf; the report's paragraph about it. A start_weights.npz that cannot be read is
-    passed over, with a line in `warnings`."""
+                  name: str = "maze", method: str = "auxss") -> list[str]:
+    """Draw NAME.png/pdf: the maze and the start-state probabilities of a `method` run; the report's
+    paragraph about it. A start_weights.npz that cannot be read is passed over, with a line in
+    `warnings`."""
     weights: dict[Path, tuple | None] = {}
+    strategy = MAZE_STRATEGIES[method]
 
     def usable(run: RunRecord) -> bool:
         if run.path not in weights:
@@ -157,7 +166,7 @@ def _maze_section(groups: list[Group], threshold: float, where: str, out: Path, 
                 warnings.append(f"{error}. The maze figure does not use it.")
         return weights[run.path] is not None
 
-    chosen = weights_run(groups, threshold, usable)
+    chosen = weights_run(groups, threshold, usable, method)
     source = chosen or next((r for g in groups for r in g.runs
                              if (r.path / "start_weights.npz").is_file() and usable(r)), None)
     states, snapshots = None, []
@@ -172,17 +181,20 @@ def _maze_section(groups: list[Group], threshold: float, where: str, out: Path, 
         caption = (f"start weights of {chosen.method} seed {chosen.seed} ({chosen.path}); "
                    f"{len(states)} candidate demo states")
         text = (f"The maze (walls grey, lava orange, goal red, p0 blobs green, ood spots blue) with the {len(states)} "
-                f"candidate demo states, then AuxSS's start-state probabilities on them at {len(snapshots)} "
+                f"candidate demo states, then {strategy}'s start-state probabilities on them at {len(snapshots)} "
                 f"evaluations of `{chosen.path}` (seed {chosen.seed}).")
+        from_p0 = [f"{step:,.0f}" for step, _, p in snapshots if not p.any()]
+        if from_p0:  # a strategy that has moved on to p0 puts no weight on any demo state
+            text += f" At step{'s' * (len(from_p0) > 1)} {', '.join(from_p0)} every episode starts from p0."
     else:
         with_states = f" with the {len(states)} candidate demo states" if states is not None else ""
         caption = "the maze" + with_states
-        text = (f"The maze{with_states}. *No AuxSS run with start_weights.npz in {where}: the start weights "
+        text = (f"The maze{with_states}. *No {strategy} run with start_weights.npz in {where}: the start weights "
                 f"are not shown.*")
     layout = maze_layout(source or groups[0].runs[0])
     save_figure(maze_figure(layout, states, snapshots, caption), out, name)
     notes = [f"*Skipped: {warning}*" for warning in warnings]
-    return [text, *(["", *notes] if notes else []), "", f"![The maze and AuxSS start weights]({name}.png)", "",
+    return [text, *(["", *notes] if notes else []), "", f"![The maze and {strategy} start weights]({name}.png)", "",
             f"[PDF]({name}.pdf)"]
 
 
@@ -213,10 +225,16 @@ def _task_sections(groups: list[Group], curves: dict, threshold: float, reps: in
                "The methods with runs on both demo sets; solid lines 0.5K, dashed 7.5K.",
                "no method has runs with both 0.5K and 7.5K demo transitions.")
     add_figure("start_distributions", "Start-distribution study", benchmark_groups(groups, START_STUDY),
-               "SAC trained from each start-state distribution over the same candidate demo states.",
+               "SAC trained from each start-state distribution over the demo states (the same random subset of "
+               "them for all but reverse_ss, whose candidates are whole demo episodes).",
                f"none of {', '.join(START_STUDY)} has runs here.", START_STUDY)
     lines.extend(["", f"{heading} The maze and AuxSS's start weights", "",
                   *_maze_section(groups, threshold, where, out, warnings, prefix + "maze")])
+    if any((run.path / "start_weights.npz").is_file() for g in benchmark_groups(groups, ("reverse_ss",)) for run in g.runs):
+        skipped: list[str] = []  # its own, so the AuxSS section's notes are not repeated under it
+        lines.extend(["", f"{heading} The reverse curriculum's start states", "",
+                      *_maze_section(groups, threshold, where, out, skipped, prefix + "maze_reverse_ss", "reverse_ss")])
+        warnings.extend(skipped)
     lines.extend(["", f"{heading} At the last evaluation", "", *last_evaluation_table(groups, curves)])
     lines.extend(["", f"{heading} Over the last third of training", "", *late_table(groups, reps)])
     lines.extend(["", f"{heading} Steps to p0 success >= {threshold:g}", "", *threshold_table(groups, threshold)])

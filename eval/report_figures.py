@@ -136,16 +136,30 @@ def maze_figure(layout, states: np.ndarray | None, weights: list[tuple[float, fl
         relative = [p * len(p) for _, _, p in weights]
         positive = np.concatenate(relative)
         positive = positive[positive > 0]
-        norm = LogNorm(vmin=positive.min(), vmax=max(positive.max(), positive.min() * 1.01))
+        # a panel whose strategy starts every episode from p0 has no positive weight; all of them: no scale
+        norm = (LogNorm(vmin=positive.min(), vmax=max(positive.max(), positive.min() * 1.01)) if positive.size
+                else None)
+        points = None
         for i, ((step, success, _), rel) in enumerate(zip(weights, relative)):
             ax = fig.add_subplot(grid[1 + i // 2, i % 2])
             draw_maze(ax, layout)
-            order = np.argsort(rel)  # the most likely starts drawn last, on top
-            points = ax.scatter(states[order, 0], states[order, 1], c=np.clip(rel[order], norm.vmin, None), s=14,
-                                cmap="viridis", norm=norm, zorder=3, edgecolors="none")
-            ax.set_title(f"step {step:,.0f} (p0 success {success:.2f})", fontsize=9)
-        fig.colorbar(points, ax=fig.axes[1:], shrink=0.8,
-                     label="start probability x number of states (1 = uniform)")
+            title = f"step {step:,.0f} (p0 success {success:.2f})"
+            drawn = rel > 0
+            if not drawn.all():
+                # a sparse strategy (the reverse curriculum: one state per demo episode) or none at all:
+                # the states it never starts from as small grey dots, so the few it does stand out
+                ax.scatter(states[~drawn, 0], states[~drawn, 1], s=4, color="#9a9a9a", zorder=3, edgecolors="none")
+                if not drawn.any():
+                    title += ": every start from p0"
+            if drawn.any():
+                order = np.flatnonzero(drawn)[np.argsort(rel[drawn])]  # the most likely starts drawn last, on top
+                points = ax.scatter(states[order, 0], states[order, 1], c=np.clip(rel[order], norm.vmin, None),
+                                    s=14 if drawn.all() else 40, cmap="viridis", norm=norm, zorder=3 if drawn.all() else 4,
+                                    edgecolors="none" if drawn.all() else "black")
+            ax.set_title(title, fontsize=9)
+        if points is not None:
+            fig.colorbar(points, ax=fig.axes[1:], shrink=0.8,
+                         label="start probability x number of states (1 = uniform)")
     return fig
 
 

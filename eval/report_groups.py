@@ -17,11 +17,10 @@ from lava_bridge_mj.eval.findings import is_default, pick
 STANDARD_DEMOS = 500
 """The paper's benchmark protocol gives every demo-using method 500 transitions (0.5K)."""
 DEMO_SIZES = (500, 7500)
-START_STUDY = tuple(m.name for m in METHODS.values()
-                    if m.learner == "sac" and m.demos == "none" and m.start != "p0" and m.candidates == "subset")
+START_STUDY = tuple(m.name for m in METHODS.values() if m.learner == "sac" and m.demos == "none" and m.start != "p0")
 """The start-distribution study's methods (paper, figure 'ss_dists'): SAC trained from each start
-strategy over the same candidate demo states, nothing else changed (auxss, omega_ss, uniform_ss,
-goaldist_ss)."""
+strategy over the demo states, nothing else changed (auxss, omega_ss, uniform_ss and goaldist_ss on
+the same random subset of them; reverse_ss, RFCL's reverse curriculum, on whole demo episodes)."""
 
 
 def is_offline(group: Group) -> bool:
@@ -72,11 +71,11 @@ def comparison_pairs(groups: list[Group]) -> list[tuple[Group, Group]]:
     return pairs
 
 
-def weights_run(groups: list[Group], threshold: float, usable=None) -> RunRecord | None:
-    """The AuxSS run whose start weights the maze figure shows: of the first AuxSS group (0.5K first)
+def weights_run(groups: list[Group], threshold: float, usable=None, method: str = "auxss") -> RunRecord | None:
+    """The run of `method` whose start weights a maze figure shows: of its first group (0.5K first)
     with start_weights.npz, the lowest seed that reached the threshold, else its lowest seed. `usable`
     (a run -> bool) can rule out runs whose file cannot be read."""
-    for group in benchmark_groups(groups, ("auxss",)):
+    for group in benchmark_groups(groups, (method,)):
         runs = [run for run in group.runs
                 if (run.path / "start_weights.npz").is_file() and (usable is None or usable(run))]
         if runs:

@@ -52,6 +52,10 @@ def write_run(directory, method="auxss", seed=0, demos=500, p0=(0.0, 0.5), ood=N
         rng = np.random.default_rng(seed)
         states = np.column_stack([rng.uniform(-5, 5, 30), rng.uniform(-0.1, 0.1, 30), rng.normal(0, 1, (30, 2))])
         probabilities = rng.dirichlet(np.ones(30), size=len(steps))
+        if weights == "curriculum":  # reverse_ss: half on each of two demo episodes' start index, then p0
+            probabilities = np.zeros((len(steps), 30))
+            for i in range(len(steps) - 1):
+                probabilities[i, [14 - i, 29 - i]] = 0.5
         np.savez(directory / "start_weights.npz", steps=np.array(steps), states=states, probabilities=probabilities)
 
 
@@ -199,7 +203,7 @@ def test_groups_are_picked_by_method_and_demo_set_and_described_by_the_registry(
     assert labels(aggregate.groups_of(groups, "auxss")) == auxss
     assert labels(aggregate.groups_of(groups, "auxss", 7500)) == ["auxss (7.5K)"]
     assert aggregate.groups_of(groups, "hysac", 7500) == [] and aggregate.groups_of(groups, "sac") == []
-    assert report_groups.START_STUDY == ("auxss", "omega_ss", "uniform_ss", "goaldist_ss")
+    assert report_groups.START_STUDY == ("auxss", "omega_ss", "uniform_ss", "goaldist_ss", "reverse_ss")
     assert labels(report_groups.benchmark_groups(groups)) == [*auxss[:2], "hysac (0.5K)", "bc (0.5K)"]
     assert labels(report_groups.demo_size_groups(groups)) == auxss
     # bc learns offline (the registry says so): it is not tested against AuxSS
@@ -275,10 +279,10 @@ def full_sweep(root, seeds=(0, 1, 2)):
                 p0 = list(np.clip(np.linspace(0, 1, 5) * (0.4 + 0.06 * m) + 0.1 * seed, 0, 1))
                 write_run(root / f"{method}-d{demos}" / f"seed{seed}", method=method, seed=seed, demos=demos, p0=p0,
                           train=None if method not in ("bc", "iql") else [float("nan")] * 5,
-                          weights=method == "auxss")
+                          weights={"auxss": True, "reverse_ss": "curriculum"}.get(method, False))
 
 
-FIGURES = ("benchmark", "demo_size", "start_distributions", "maze")
+FIGURES = ("benchmark", "demo_size", "start_distributions", "maze", "maze_reverse_ss")
 
 
 def test_report_writes_every_figure_and_the_markdown(tmp_path, capsys):
@@ -305,6 +309,11 @@ def test_report_writes_every_figure_and_the_markdown(tmp_path, capsys):
     assert re.search(r"\| auxss \(0\.5K\) \| 3 \| 5,000 \| 0\.56 \[", text)
     assert "| sac (0.5K) | 0 of 3 | not reached | not reached |" in text
     assert "start weights" in text and "seed 0" in text
+    # reverse_ss's map, from the lowest seed of its 0.5K group that reached 0.8: reverse_ss is method 5,
+    # p0 success ramps to 0.7 + 0.1 * seed, so only seed 2 gets there; its last evaluation (step 5,000)
+    # puts no weight on any demo state: every episode starts from p0
+    assert (f"then reverse_ss's start-state probabilities on them at 4 evaluations of "
+            f"`{sweep / 'reverse_ss-d500' / 'seed2'}` (seed 2). At step 5,000 every episode starts from p0.") in text
     # over the last third (steps 4,000 and 5,000) auxss's seeds average 0.4025 + 0.1 * seed: IQM 0.5025
     assert "| auxss (0.5K) | 3 | 2 (4,000-5,000) | 0.50 [" in text
 
@@ -361,7 +370,7 @@ def test_report_skips_figures_whose_methods_are_absent(tmp_path):
     assert report.main([str(tmp_path), "--out", str(out), "--reps", "100"]) == 0
     text = (out / "report.md").read_text()
     assert "*Skipped: no method has runs with both 0.5K and 7.5K demo transitions.*" in text
-    assert "*Skipped: none of auxss, omega_ss, uniform_ss, goaldist_ss has runs here.*" in text
+    assert "*Skipped: none of auxss, omega_ss, uniform_ss, goaldist_ss, reverse_ss has runs here.*" in text
     assert "Not in this directory: auxss, omega_ss" in text  # in the benchmark figure's note
     assert "No AuxSS run with start_weights.npz" in text
     assert (out / "benchmark.png").is_file() and (out / "maze.png").is_file()
