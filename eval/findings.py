@@ -93,6 +93,8 @@ TOLERANCE = 1e-9
 
 SUPPORTED, CONTRADICTED = "supported", "contradicted"
 UNDECIDED, NO_DIFFERENCE, MISSING = "not enough seeds to decide", "no difference found", "missing runs"
+NOT_RUN = "not run"
+"""A group that finding 2 would also compare with, absent: noted, the finding stands on the others."""
 PER_COMPARISON = "per comparison"
 """Findings 7 and 8 when their comparisons' verdicts differ: each stands alone."""
 WEAKEST_FIRST = (MISSING, CONTRADICTED, NO_DIFFERENCE, UNDECIDED, SUPPORTED)
@@ -316,9 +318,11 @@ def _final(group: Group, metric: str) -> np.ndarray:
 class _Draft:
     number: int
     claim: str
-    items: list  # Part (decided) or Pending (waiting for the correction)
+    items: list  # Part (decided), Pending (waiting for the correction) or None (no seeds in common)
     each: bool = False
     missing: list[str] = dataclasses.field(default_factory=list)
+    partial: bool = False
+    """The finding stands on the groups present when some of `missing` are absent (finding 2)."""
 
 
 def _absent(chosen: dict[str, Group | None]) -> list[str]:
@@ -332,7 +336,7 @@ def _label(method: str, demos: int = 500) -> str:
 def sac_fails(groups) -> _Draft:
     draft = _Draft(1, "SAC from p0 stays near 0% success within the budget", [])
     sac = pick(groups, "sac")
-    if sac is None:
+    if sac is None or not len(sac.steps):
         draft.missing = [_label("sac")]
         return draft
     escaped = int((np.nanmax(sac.scores("success_p0"), axis=1) > NEAR_ZERO + TOLERANCE).sum())
@@ -351,7 +355,7 @@ def auxss_faster_than_hybrids(groups) -> _Draft:
     for name, hybrid in chosen.items():
         if hybrid is not None:
             draft.items.append(reach_comparison(auxss, hybrid, f"auxss (0.5K) against {name}"))
-    draft.missing = _absent(chosen)  # noted, the present ones still tested
+    draft.missing, draft.partial = _absent(chosen), True
     return draft
 
 
@@ -398,7 +402,7 @@ def undirected_starts_slower(groups) -> _Draft:
 def offline_methods(groups) -> _Draft:
     draft = _Draft(6, "IQL does well from p0 and drops from ood; BC fails from both with 0.5K demos", [])
     iql, bc = pick(groups, "iql"), pick(groups, "bc")
-    if iql is None or bc is None:
+    if iql is None or bc is None or not (len(iql.steps) and len(bc.steps)):
         draft.missing = _absent({_label("iql"): iql, _label("bc"): bc})
         return draft
     p0, ood = _final(iql, "success_p0"), _final(iql, "success_ood")
@@ -458,11 +462,10 @@ def check_findings(groups: list[Group]) -> list[Finding]:
     for d in drafts:
         parts = [next(settled) if isinstance(item, Pending) else item if item is not None
                  else _no_common_seeds(d.claim) for item in d.items]
-        if d.missing and (not parts or d.number != 2):
-            parts.append(Part("not run", ", ".join(d.missing), MISSING))
-        elif d.missing:
-            parts.append(Part("not run", ", ".join(d.missing), "not tested"))
-        verdicts = [p.verdict for p in parts if p.verdict != "not tested"]
+        if d.missing:
+            absent = NOT_RUN if parts and d.partial else MISSING
+            parts.append(Part("groups not run", ", ".join(d.missing), absent))
+        verdicts = [p.verdict for p in parts if p.verdict != NOT_RUN]
         if d.each and len(set(verdicts)) > 1 and MISSING not in verdicts:
             verdict = PER_COMPARISON
         else:

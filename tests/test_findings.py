@@ -128,7 +128,9 @@ def test_check_findings_holm_corrects_across_findings_and_names_what_is_missing(
     # four p-values in the family (finding 2's two and finding 8's two, the latter 1.0): 1.08e-05 x 4
     [tested, not_run] = found[2].parts
     assert tested.verdict == findings.SUPPORTED and "(Holm 4.33e-05)" in tested.tests
-    assert not_run.measured == "hysac (7.5K), jsrl (0.5K), jsrl (7.5K)" and found[2].verdict == findings.SUPPORTED
+    # the baselines not run are named, and the finding stands on the one that was
+    assert not_run.measured == "hysac (7.5K), jsrl (0.5K), jsrl (7.5K)" and not_run.verdict == findings.NOT_RUN
+    assert found[2].verdict == findings.SUPPORTED
     assert found[3].verdict == findings.MISSING and found[3].parts[0].measured == "hysac_auxss (0.5K)"
     assert found[5].verdict == findings.MISSING and "omega_ss (0.5K)" in found[5].measured
     # the variant on seeds 0-4 against AuxSS's seeds 0-4 only: 5 of 5 each, too few seeds to tell
