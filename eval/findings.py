@@ -2,7 +2,7 @@
 
 `check_findings(groups)` returns one `Finding` per claim of the paper (findings 1-8). A finding is
 made of parts, each a test of one comparison or of one group alone, and every part's verdict comes
-from the rules below, written down before and independently of any result.
+from the rules below, none of which depends on the data.
 
 **Outcomes per seed.** Per-seed outcomes are close to all-or-nothing (a seed solves the task or it
 does not), so every claim is read as a claim about counts of seeds:
@@ -45,7 +45,8 @@ would leave 0.5 out. (A claim that most seeds do it: the other way round.)
 
 **A finding** whose parts must all hold (findings 1-6: a conjunction) takes the weakest of its parts'
 verdicts, in the order contradicted, no difference found, not enough seeds to decide, supported; it is
-*missing runs* when a group it needs is absent. Findings 7 and 8 are one comparison per method or
+*missing runs* when a group it needs is absent (finding 2 stands on whichever of its four baselines
+were run and names the others *not run*). Findings 7 and 8 are one comparison per method or
 variant, and are given per part (one verdict when all of them agree).
 
 1. SAC from p0 stays near 0%: few seeds ever exceed `NEAR_ZERO` (0.1) success from p0 (one group).
