@@ -1,40 +1,71 @@
-"""The paper's findings on Lava Bridge, each checked against a fixed criterion on the runs at hand.
+"""The paper's findings on Lava Bridge, each decided by a stated test at a stated level.
 
-`check_findings(groups)` returns one `Finding` per claim of the paper (findings 1-6), with the
-numbers it rests on and a verdict: *reproduced*, *partly*, *not reproduced*, or *missing runs* when a
-group it needs is absent. The criteria are written down here, before and independently of any
-result, as the most direct reading of the paper's words (section 5); they are deliberately simple
-so a reader can redo them from the report's tables:
+`check_findings(groups)` returns one `Finding` per claim of the paper (findings 1-8). A finding is
+made of parts, each a test of one comparison or of one group alone, and every part's verdict comes
+from the rules below, none of which depends on the data.
 
-1. SAC from p0 "fails to reach the goal within the budget": reproduced when SAC's IQM success from
-   p0 never exceeds 0.1 at any evaluation; partly when it ends at or below 0.2.
-2. AuxSS (150 of the 0.5K demo states) reaches 0.8 from p0 in at most a third of the steps of the best
-   of HySAC and JSRL, on either demo set: compares the median steps to 0.8 over all seeds (a seed that
-   never got there counts as infinitely late). Reproduced at <= 1/3, partly when AuxSS is faster but
-   not 3x, not reproduced otherwise (and when AuxSS's median is never reached).
-3. HySAC+AuxSS is at least as robust as either alone: IQM success from ood at the last common
-   evaluation. Reproduced when >= both AuxSS's and HySAC's, partly when >= one of them.
-4. Omega-SS matches AuxSS early and its ood success falls behind later: "early" is the first half
-   of the evaluations (long enough for AuxSS to leave 0), where Omega-SS's mean IQM success from p0
-   (the area under its curve) must be at least AuxSS's minus 0.1;
-   "later" is the last evaluation, where its IQM success from ood must be below AuxSS's. Reproduced
-   when both hold, partly when one does.
-5. U-SS and GoalDist-SS are clearly slower than AuxSS and Omega-SS: each one's median steps to 0.8 is
-   later than both AuxSS's and Omega-SS's (and those two are reached). Reproduced when both U-SS and
-   GoalDist-SS are, partly when one is.
-6. IQL does well from p0 and drops from ood; BC fails from both with 0.5K demos: IQL's last IQM success
-   from p0 >= 0.8 and from ood at least 0.1 below it; BC's last IQM success <= 0.2 from both.
-   Reproduced when both parts hold, partly when one does.
+**Outcomes per seed.** Per-seed outcomes are close to all-or-nothing (a seed solves the task or it
+does not), so every claim is read as a claim about counts of seeds:
 
-`demo_size_rows` and `variant_rows` tabulate findings 7 (0.5K vs 7.5K) and 8 (the AuxSS ablations),
-which the paper states as comparisons to look at rather than as pass/fail claims.
+- *reaching 0.8*: success from p0 at or above `THRESHOLD` at some evaluation up to the step compared
+  (eval/statistics.py's `seed_outcomes`), and the step it first did (never: tied last);
+- *robust*: the seed's mean success from ood over the late window (the evaluations past two thirds of
+  the step compared, eval/aggregate.py's `LATE_FRACTION`) is at least `ROBUST`.
+
+**A comparison** ("A reaches 0.8 more often or sooner than B", "A is more robust than B") is made on
+MATCHED seeds: only the seeds both groups have, each up to the last evaluation step both have (and
+all online groups first cut to the last step every one of them has, `common_step`). Two tests decide
+it, both two-sided, from eval/statistics.py:
+
+- a claim about reaching 0.8: Fisher's exact test on the reach counts and the rank test (Mann-Whitney U
+  by permutation) on the steps to 0.8, a seed that never got there tied last;
+- a claim about robustness: Fisher's exact test on the counts of robust seeds and the permutation test
+  of the difference in mean late-window success from ood.
+
+The p-values of every comparison of every finding form one family, Holm-corrected (`stats.holm`),
+and a test rejects when its adjusted p-value is at most `ALPHA`. A claim that A is better than B is
+**supported** when a test rejects with A ahead and none rejects with B ahead; **contradicted** when a
+test rejects with B ahead and none with A ahead. When none rejects, the power decides what that
+means: the exact power of Fisher's test at `ALPHA` with these seeds (eval/statistics.py's `power`) to
+detect the effect the claim implies, a difference of `EFFECT` (0.3) in the rate, placed around the
+observed pooled rate (pooled - 0.15 against pooled + 0.15, shifted to stay within [0, 1]). Below
+`POWER` (80%) the verdict is **not enough seeds to decide**, with the seeds per group that would give
+80% (`seeds_needed`); at or above it, **no difference found**. The power is that of one test at
+`ALPHA`; the correction across the family only lowers it, so an adequate power here is an upper bound.
+A claim that A *matches* B is supported when no test rejects and the power is adequate, contradicted
+when a test rejects either way, and not enough seeds to decide otherwise. A claim that the paper
+states as a ratio of steps (finding 2's "a third of the steps") is tested as the comparison it implies,
+sooner or more often: a ratio of medians has no test when seeds never reach 0.8.
+
+**A claim about one group alone** ("SAC stays near 0") counts the seeds with the event the claim names
+and takes the exact (Clopper-Pearson) 95% interval of its rate (`stats.reach_count`): a claim that few
+seeds do it is supported when the interval lies below `MOST` (0.5), contradicted when it lies above,
+and otherwise not enough seeds to decide, with the fewest seeds at which the observed rate's interval
+would leave 0.5 out. (A claim that most seeds do it: the other way round.)
+
+**A finding** whose parts must all hold (findings 1-6: a conjunction) takes the weakest of its parts'
+verdicts, in the order contradicted, no difference found, not enough seeds to decide, supported; it is
+*missing runs* when a group it needs is absent (finding 2 stands on whichever of its four baselines
+were run and names the others *not run*). Findings 7 and 8 are one comparison per method or
+variant, and are given per part (one verdict when all of them agree).
+
+1. SAC from p0 stays near 0%: few seeds ever exceed `NEAR_ZERO` (0.1) success from p0 (one group).
+2. AuxSS (0.5K) reaches 0.8 more often or sooner than each of HySAC and JSRL, 0.5K and 7.5K.
+3. HySAC+AuxSS is at least as robust as AuxSS and as HySAC: more robust than each, tested (no
+   difference found then says "as robust, not more").
+4. Omega-SS matches AuxSS early: the same reach of 0.8 up to the last evaluation of the first half of
+   the steps (matches); later its robustness falls behind: AuxSS more robust at the step compared.
+5. U-SS and GoalDist-SS are clearly slower: AuxSS and Omega-SS each reach 0.8 more often or sooner than
+   each of U-SS and GoalDist-SS (four comparisons).
+6. IQL does well from p0 and drops from ood; BC fails with 0.5K (one group each, at the last
+   evaluation): most IQL seeds end at success 0.8 or more from p0; most IQL seeds end at least 0.1
+   lower from ood than from p0; most BC seeds end at 0.2 or less from both.
+7. Demo size: each method with 7.5K demo transitions reaches 0.8 more often or sooner than with 0.5K.
+8. Ablations: AuxSS as in the paper reaches 0.8 more often or sooner than each of its variants.
 
 Groups are taken in their default configuration: a group whose settings (eval/aggregate.py) differ
 from RunConfig's defaults is a variant (an ablation, a LayerNorm critic) and never stands in for its
-method in findings 1-6. The online groups are first cut to the last evaluation step all of them have
-(`common_step`), so no claim compares one method at 50,000 steps with another at 100,000 (offline
-methods count gradient steps and are left as they are). Values are IQMs across seeds at each step
-(eval/aggregate.py's `iqm`, the report's curves without their intervals).
+method in findings 1-7. Offline methods count gradient steps and are left as they are.
 """
 
 from __future__ import annotations
@@ -45,20 +76,56 @@ import math
 import numpy as np
 
 from lava_bridge_mj.agents.methods import METHODS
-from lava_bridge_mj.eval.aggregate import Group, demos_label, groups_of, iqm, steps_to_threshold
+from lava_bridge_mj.eval import statistics as stats
+from lava_bridge_mj.eval.aggregate import LATE_FRACTION, Group, demos_label, groups_of
+from lava_bridge_mj.eval.summary import THRESHOLD
 
-REPRODUCED, PARTLY, NOT, MISSING = "reproduced", "partly", "not reproduced", "missing runs"
+ALPHA, POWER = stats.ALPHA, stats.POWER
+EFFECT = 0.3
+"""The difference in rate a comparison claim implies, for the power of a test that does not reject."""
+MOST = 0.5
+"""A claim about one group alone is about most seeds (rate above this) or few (below)."""
+ROBUST = 0.5
+"""Mean late-window success from ood at which a seed counts as robust."""
+NEAR_ZERO = 0.1
+"""Success from p0 that a seed of a method that "stays near 0" never exceeds."""
 TOLERANCE = 1e-9
-"""IQMs of success rates are sums of fifties: 0.1 may come out as 0.10000000000000002."""
+"""Success rates are multiples of 1/50 that may come out as 0.10000000000000002."""
+
+SUPPORTED, CONTRADICTED = "supported", "contradicted"
+UNDECIDED, NO_DIFFERENCE, MISSING = "not enough seeds to decide", "no difference found", "missing runs"
+NOT_RUN = "not run"
+"""A group that finding 2 would also compare with, absent: noted, the finding stands on the others."""
+PER_COMPARISON = "per comparison"
+"""Findings 7 and 8 when their comparisons' verdicts differ: each stands alone."""
+WEAKEST_FIRST = (MISSING, CONTRADICTED, NO_DIFFERENCE, UNDECIDED, SUPPORTED)
 HYBRIDS = ("hysac", "jsrl")
+DEMO_SIZES = (500, 7500)
+
+
+@dataclasses.dataclass(frozen=True)
+class Part:
+    """One tested statement of a finding: what it claims, the numbers and tests, and its verdict."""
+
+    claim: str
+    measured: str
+    verdict: str
+    tests: str = ""
+    """Each test's raw and Holm-adjusted p-value; empty for a claim about one group."""
+    power: str = ""
+    """The power to detect the claimed effect and the seeds needed, where no test rejected."""
 
 
 @dataclasses.dataclass(frozen=True)
 class Finding:
     number: int
     claim: str
-    measured: str
+    parts: list[Part]
     verdict: str
+
+    @property
+    def measured(self) -> str:
+        return "; ".join(f"{p.claim}: {p.measured}" for p in self.parts)
 
 
 def is_default(group: Group) -> bool:
@@ -78,177 +145,331 @@ def common_step(groups: list[Group]) -> float | None:
     return min(ends) if len(ends) > 1 else None
 
 
+def _until(group: Group, step: float) -> Group:
+    return dataclasses.replace(group, runs=[
+        dataclasses.replace(run, rows=[row for row in run.rows if row["step"] <= step]) for run in group.runs])
+
+
 def _cut(groups: list[Group], step: float | None) -> list[Group]:
     if step is None:
         return groups
-    return [g if not METHODS[g.method].online else dataclasses.replace(g, runs=[
-        dataclasses.replace(run, rows=[row for row in run.rows if row["step"] <= step]) for run in g.runs])
-        for g in groups]
+    return [_until(g, step) if METHODS[g.method].online else g for g in groups]
 
 
-def _curve(group: Group, metric: str) -> np.ndarray:
-    """IQM across seeds at each of the group's common steps."""
-    return iqm(group.scores(metric))
+def matched(a: Group, b: Group) -> tuple[Group, Group] | None:
+    """Both groups cut to the seeds they share, each up to the last evaluation step both have; None
+    when they share no seed or no step."""
+    seeds = set(a.seeds) & set(b.seeds)
+    if not seeds:
+        return None
+    a, b = (dataclasses.replace(g, runs=[run for run in g.runs if run.seed in seeds]) for g in (a, b))
+    if not (len(a.steps) and len(b.steps)):
+        return None
+    step = min(a.steps[-1], b.steps[-1])
+    return _until(a, step), _until(b, step)
 
 
-def _last(group: Group, metric: str) -> float:
-    curve = _curve(group, metric)
-    return float(curve[-1]) if len(curve) else math.nan
+def _seeds_text(seeds: list[int]) -> str:
+    """[0, 1, 2, 3, 5] -> '0-3, 5'."""
+    spans, start = [], None
+    for i, seed in enumerate(seeds):
+        start = seed if start is None else start
+        if i + 1 == len(seeds) or seeds[i + 1] != seed + 1:
+            spans.append(f"{start}" if start == seed else f"{start}-{seed}")
+            start = None
+    return ", ".join(spans)
 
 
-def _median_steps(group: Group) -> float:
-    return steps_to_threshold(group).median
+def _count(reach: stats.ReachCount) -> str:
+    return f"{reach.reached}/{reach.seeds} [{reach.low:.2f}, {reach.high:.2f}]"
 
 
-def _steps_text(group: Group) -> str:
-    found = steps_to_threshold(group)
-    median = f"{found.median:,.0f}" if math.isfinite(found.median) else "never"
-    return f"{group.label}: median {median} ({found.reached} of {len(group.runs)} seeds reach 0.8)"
+# --- comparisons, before and after the correction ----------------------------------------------------
+@dataclasses.dataclass(frozen=True)
+class Pending:
+    """A comparison claim with its raw p-values, waiting for the family's correction."""
+
+    claim: str
+    measured: str
+    p: dict[str, float]
+    """Test name -> raw two-sided p-value."""
+    a_ahead: dict[str, bool | None]
+    """Test name -> True when A's side is ahead, False when B's, None when they are level."""
+    counts: tuple[int, int, int, int]
+    """A's events and seeds, B's events and seeds: the binary outcome behind the power."""
+    matches: bool = False
+    """The claim is that A matches B (no difference), not that A is better."""
 
 
-def _missing(claim: str, number: int, names: list[str]) -> Finding:
-    return Finding(number, claim, "no runs of " + ", ".join(names), MISSING)
+def reach_comparison(a: Group, b: Group, claim: str, matches: bool = False) -> Pending | None:
+    """A against B on reaching `THRESHOLD` from p0: Fisher's test on the reach counts, the rank test
+    on the steps to it; None when the groups share no seed or step."""
+    pair = matched(a, b)
+    if pair is None:
+        return None
+    a, b = pair
+    outcomes = [stats.seed_outcomes(g, THRESHOLD) for g in (a, b)]
+    c = stats.compare(*outcomes)
+    ra, rb = c.a.reach, c.b.reach
+    p = {"Fisher's test on reach counts": c.p["reach"], "rank test on steps to 0.8": c.p["steps"]}
+    ahead = {"Fisher's test on reach counts": None if ra.rate == rb.rate else ra.rate > rb.rate,
+             "rank test on steps to 0.8": None if c.sooner == 0.5 else c.sooner > 0.5}
+    measured = (f"seeds {_seeds_text(sorted(a.seeds))} to step {c.a.step:,.0f}: reached 0.8 {_count(ra)} against "
+                f"{_count(rb)}, P(A sooner) = {c.sooner:.2f}")
+    return Pending(claim, measured, p, ahead, (ra.reached, ra.seeds, rb.reached, rb.seeds), matches)
 
 
-def _require(groups: list[Group], methods: tuple[str, ...]) -> tuple[dict[str, Group], list[str]]:
-    """The default 0.5K group of each method, and the names of those that have none."""
-    chosen = {m: pick(groups, m) for m in methods}
-    return chosen, [f"{m} (0.5K)" for m, g in chosen.items() if g is None]
+def late_ood(group: Group) -> np.ndarray:
+    """Per seed, the mean success from ood over the evaluations past two thirds of the group's last
+    common step."""
+    steps = group.steps
+    window = steps > (1 - LATE_FRACTION) * steps[-1]
+    return group.scores("success_ood")[:, window].mean(axis=1)
 
 
-def _grade(passed: int, needed: int) -> str:
-    return REPRODUCED if passed == needed else PARTLY if passed else NOT
+def robust_comparison(a: Group, b: Group, claim: str) -> Pending | None:
+    """A against B on robustness: Fisher's test on the counts of robust seeds, the permutation test on
+    the mean late-window success from ood; None when the groups share no seed or step."""
+    pair = matched(a, b)
+    if pair is None:
+        return None
+    a, b = pair
+    late = [late_ood(g) for g in (a, b)]
+    robust = [stats.reach_count(int((x >= ROBUST - TOLERANCE).sum()), len(x)) for x in late]
+    means = [float(x.mean()) for x in late]
+    p = {"Fisher's test on robust-seed counts": stats.fisher_p(robust[0].reached, robust[0].seeds,
+                                                              robust[1].reached, robust[1].seeds),
+         "permutation test on late ood success": stats.permutation_p(*late)}
+    ahead = {"Fisher's test on robust-seed counts": None if robust[0].rate == robust[1].rate
+             else robust[0].rate > robust[1].rate,
+             "permutation test on late ood success": None if means[0] == means[1] else means[0] > means[1]}
+    measured = (f"seeds {_seeds_text(sorted(a.seeds))} to step {a.steps[-1]:,.0f}: mean late-window success from ood "
+                f"{means[0]:.2f} against {means[1]:.2f}, robust seeds (>= {ROBUST:g}) {_count(robust[0])} against "
+                f"{_count(robust[1])}")
+    return Pending(claim, measured, p, ahead, (robust[0].reached, robust[0].seeds, robust[1].reached, robust[1].seeds))
 
 
-def sac_fails(groups) -> Finding:
-    claim = "SAC from p0 stays near 0% success within the budget"
+def claimed_rates(events_a: int, seeds_a: int, events_b: int, seeds_b: int) -> tuple[float, float]:
+    """The rates a difference of `EFFECT` implies around the pooled observed rate, within [0, 1]."""
+    pooled = (events_a + events_b) / (seeds_a + seeds_b)
+    low = min(max(pooled - EFFECT / 2, 0.0), 1.0 - EFFECT)
+    return low + EFFECT, low
+
+
+def power_text(counts: tuple[int, int, int, int]) -> tuple[float, str]:
+    """The power of Fisher's test to detect `EFFECT` around the pooled rate with these seeds, and its text."""
+    high, low = claimed_rates(*counts)
+    power = stats.power(high, low, counts[1], counts[3])
+    needed = stats.seeds_needed(high, low)
+    text = (f"power {power:.2f} to detect {high:.2f} against {low:.2f}; "
+            + (f"{needed} seeds per group give {POWER:.0%}" if needed else f"more than {stats.MAX_SEEDS} seeds "
+               f"per group needed for {POWER:.0%}"))
+    return power, text
+
+
+def settle(pending: list[Pending]) -> list[Part]:
+    """The verdicts of the comparisons, their p-values Holm-corrected as one family."""
+    raw = [p for c in pending for p in c.p.values()]
+    adjusted = iter(stats.holm(raw))
+    parts = []
+    for c in pending:
+        tests, rejected = [], set()
+        for name, p in c.p.items():
+            adj = next(adjusted)
+            tests.append(f"{name} p = {p:.3g} (Holm {adj:.3g})" if math.isfinite(p) else f"{name}: no test")
+            if math.isfinite(adj) and adj <= ALPHA and c.a_ahead[name] is not None:
+                rejected.add(c.a_ahead[name])
+        power, text = power_text(c.counts)
+        if c.matches:
+            verdict = CONTRADICTED if rejected else SUPPORTED if power >= POWER else UNDECIDED
+        elif rejected == {True}:
+            verdict = SUPPORTED
+        elif rejected == {False}:
+            verdict = CONTRADICTED
+        else:
+            verdict = NO_DIFFERENCE if power >= POWER and not rejected else UNDECIDED
+        parts.append(Part(c.claim, c.measured, verdict, "; ".join(tests), "" if rejected else text))
+    return parts
+
+
+# --- claims about one group -----------------------------------------------------------------------
+def one_group(claim: str, events: int, seeds: int, few: bool) -> Part:
+    """A claim that few (or most) seeds of a group show an event, decided by the Clopper-Pearson interval
+    of the rate against `MOST`."""
+    reach = stats.reach_count(events, seeds)
+    below, above = reach.high < MOST, reach.low > MOST
+    if below or above:
+        verdict = SUPPORTED if below == few else CONTRADICTED
+        return Part(claim, f"{_count(reach)} of the seeds", verdict)
+    rate = reach.rate
+    needed = next((n for n in range(seeds + 1, stats.MAX_SEEDS + 1)
+                   if not stats.reach_count(round(rate * n), n).low <= MOST <= stats.reach_count(round(rate * n),
+                                                                                               n).high), None)
+    power = (f"at the observed rate {needed} seeds would place the interval on one side of {MOST:g}" if needed
+             else f"at the observed rate no number of seeds up to {stats.MAX_SEEDS} decides")
+    return Part(claim, f"{_count(reach)} of the seeds", UNDECIDED, power=power)
+
+
+def _final(group: Group, metric: str) -> np.ndarray:
+    return group.scores(metric)[:, -1]
+
+
+# --- the findings ---------------------------------------------------------------------------------
+@dataclasses.dataclass
+class _Draft:
+    number: int
+    claim: str
+    items: list  # Part (decided), Pending (waiting for the correction) or None (no seeds in common)
+    each: bool = False
+    missing: list[str] = dataclasses.field(default_factory=list)
+    partial: bool = False
+    """The finding stands on the groups present when some of `missing` are absent (finding 2)."""
+
+
+def _absent(chosen: dict[str, Group | None]) -> list[str]:
+    return [name for name, g in chosen.items() if g is None]
+
+
+def _label(method: str, demos: int = 500) -> str:
+    return f"{method} ({demos_label(demos)})"
+
+
+def sac_fails(groups) -> _Draft:
+    draft = _Draft(1, "SAC from p0 stays near 0% success within the budget", [])
     sac = pick(groups, "sac")
-    if sac is None:
-        return _missing(claim, 1, ["sac (0.5K)"])
-    p0, steps = _curve(sac, "success_p0"), sac.steps
-    peak, last = float(np.nanmax(p0)), float(p0[-1])
-    verdict = REPRODUCED if peak <= 0.1 + TOLERANCE else PARTLY if last <= 0.2 + TOLERANCE else NOT
-    measured = (f"IQM success from p0: at most {peak:.2f} over {len(steps)} evaluations to step "
-                f"{steps[-1]:,.0f}, {last:.2f} at the last; {steps_to_threshold(sac).reached} of "
-                f"{len(sac.runs)} seeds ever reach 0.8")
-    return Finding(1, claim, measured, verdict)
+    if sac is None or not len(sac.steps):
+        draft.missing = [_label("sac")]
+        return draft
+    escaped = int((np.nanmax(sac.scores("success_p0"), axis=1) > NEAR_ZERO + TOLERANCE).sum())
+    draft.items.append(one_group(f"few seeds of sac exceed success {NEAR_ZERO:g} from p0 by step {sac.steps[-1]:,.0f}",
+                                 escaped, len(sac.runs), few=True))
+    return draft
 
 
-def auxss_faster_than_hybrids(groups) -> Finding:
-    claim = "AuxSS reaches 0.8 from p0 in at most 1/3 of the steps of the best of HySAC and JSRL (0.5K or 7.5K)"
+def auxss_faster_than_hybrids(groups) -> _Draft:
+    draft = _Draft(2, "AuxSS (0.5K) reaches 0.8 from p0 sooner or more often than HySAC and JSRL (0.5K and 7.5K)", [])
     auxss = pick(groups, "auxss")
-    hybrids = [g for g in (pick(groups, m, d) for m in HYBRIDS for d in (500, 7500)) if g is not None]
-    absent = [f"{m} ({demos_label(d)})" for m in HYBRIDS for d in (500, 7500) if pick(groups, m, d) is None]
-    if auxss is None or not hybrids:
-        return _missing(claim, 2, (["auxss (0.5K)"] if auxss is None else []) + absent)
-    mine, best = _median_steps(auxss), min(_median_steps(g) for g in hybrids)
-    if not math.isfinite(mine):
-        verdict = NOT
-    else:
-        verdict = REPRODUCED if mine <= best / 3 else PARTLY if mine < best else NOT
-    ratio = f"; ratio {mine / best:.2f}" if math.isfinite(mine) and math.isfinite(best) else ""
-    measured = "; ".join(_steps_text(g) for g in [auxss, *hybrids]) + ratio
-    if absent:
-        measured += f"; not run: {', '.join(absent)}"
-    return Finding(2, claim, measured, verdict)
+    chosen = {_label(m, d): pick(groups, m, d) for m in HYBRIDS for d in DEMO_SIZES}
+    if auxss is None or not any(chosen.values()):
+        draft.missing = ([_label("auxss")] if auxss is None else []) + _absent(chosen)
+        return draft
+    for name, hybrid in chosen.items():
+        if hybrid is not None:
+            draft.items.append(reach_comparison(auxss, hybrid, f"auxss (0.5K) against {name}"))
+    draft.missing, draft.partial = _absent(chosen), True
+    return draft
 
 
-def hybrid_auxss_most_robust(groups) -> Finding:
-    claim = "HySAC+AuxSS is at least as robust (success from ood) as AuxSS and HySAC alone"
-    chosen, absent = _require(groups, ("hysac_auxss", "auxss", "hysac"))
-    if absent:
-        return _missing(claim, 3, absent)
-    ood = {m: _last(g, "success_ood") for m, g in chosen.items()}
-    passed = sum(ood["hysac_auxss"] >= ood[m] - TOLERANCE for m in ("auxss", "hysac"))
-    measured = "IQM success from ood at the last evaluation: " + ", ".join(
-        f"{chosen[m].label} {ood[m]:.2f}" for m in chosen)
-    return Finding(3, claim, measured, _grade(passed, 2))
+def hybrid_auxss_most_robust(groups) -> _Draft:
+    draft = _Draft(3, "HySAC+AuxSS is at least as robust (success from ood) as AuxSS and HySAC alone", [])
+    chosen = {_label(m): pick(groups, m) for m in ("hysac_auxss", "auxss", "hysac")}
+    if _absent(chosen):
+        draft.missing = _absent(chosen)
+        return draft
+    combined = chosen["hysac_auxss (0.5K)"]
+    for name in ("auxss (0.5K)", "hysac (0.5K)"):
+        draft.items.append(robust_comparison(combined, chosen[name], f"hysac_auxss (0.5K) more robust than {name}"))
+    return draft
 
 
-def omega_early_then_behind(groups) -> Finding:
-    claim = "Omega-SS matches AuxSS early in training; its ood success falls behind AuxSS later"
-    chosen, absent = _require(groups, ("omega_ss", "auxss"))
-    if absent:
-        return _missing(claim, 4, absent)
-    omega, auxss = chosen["omega_ss"], chosen["auxss"]
+def omega_early_then_behind(groups) -> _Draft:
+    draft = _Draft(4, "Omega-SS matches AuxSS early in training; its ood success falls behind AuxSS later", [])
+    omega, auxss = pick(groups, "omega_ss"), pick(groups, "auxss")
+    if omega is None or auxss is None:
+        draft.missing = _absent({_label("omega_ss"): omega, _label("auxss"): auxss})
+        return draft
     steps = np.intersect1d(omega.steps, auxss.steps)
-    early = steps[:max(1, len(steps) // 2)]
-
-    def mean_p0(group):
-        return float(np.mean(_curve(group, "success_p0")[np.isin(group.steps, early)]))
-
-    early_omega, early_auxss = mean_p0(omega), mean_p0(auxss)
-    late_omega, late_auxss = _last(omega, "success_ood"), _last(auxss, "success_ood")
-    passed = (early_omega >= early_auxss - 0.1 - TOLERANCE) + (late_omega < late_auxss - TOLERANCE)
-    measured = (f"mean IQM success from p0 over the first {len(early)} evaluations (to step {early[-1]:,.0f}): "
-                f"Omega-SS {early_omega:.2f}, AuxSS {early_auxss:.2f}; IQM success from ood at the last: "
-                f"Omega-SS {late_omega:.2f}, AuxSS {late_auxss:.2f}")
-    return Finding(4, claim, measured, _grade(passed, 2))
+    if len(steps):
+        early = steps[max(1, len(steps) // 2) - 1]
+        draft.items.append(reach_comparison(_until(omega, early), _until(auxss, early),
+                                            f"omega_ss (0.5K) matches auxss (0.5K) up to step {early:,.0f}",
+                                            matches=True))
+    draft.items.append(robust_comparison(auxss, omega, "auxss (0.5K) more robust than omega_ss (0.5K) later"))
+    return draft
 
 
-def undirected_starts_slower(groups) -> Finding:
-    claim = "U-SS and GoalDist-SS are clearly slower than AuxSS and Omega-SS"
-    chosen, absent = _require(groups, ("uniform_ss", "goaldist_ss", "auxss", "omega_ss"))
-    if absent:
-        return _missing(claim, 5, absent)
-    median = {m: _median_steps(g) for m, g in chosen.items()}
-    safety_based = max(median["auxss"], median["omega_ss"])  # slower must mean later than both
-    passed = sum(math.isfinite(safety_based) and median[m] > safety_based for m in ("uniform_ss", "goaldist_ss"))
-    measured = "; ".join(_steps_text(g) for g in chosen.values())
-    return Finding(5, claim, measured, _grade(passed, 2))
+def undirected_starts_slower(groups) -> _Draft:
+    draft = _Draft(5, "U-SS and GoalDist-SS are clearly slower than AuxSS and Omega-SS", [])
+    chosen = {m: pick(groups, m) for m in ("auxss", "omega_ss", "uniform_ss", "goaldist_ss")}
+    if _absent(chosen):
+        draft.missing = [_label(m) for m in _absent(chosen)]
+        return draft
+    for fast in ("auxss", "omega_ss"):
+        for slow in ("uniform_ss", "goaldist_ss"):
+            draft.items.append(reach_comparison(chosen[fast], chosen[slow], f"{_label(fast)} against {_label(slow)}"))
+    return draft
 
 
-def offline_methods(groups) -> Finding:
-    claim = "IQL does well from p0 and drops from ood; BC fails from both with 0.5K demos"
-    chosen, absent = _require(groups, ("iql", "bc"))
-    if absent:
-        return _missing(claim, 6, absent)
-    values = {(m, k): _last(g, f"success_{k}") for m, g in chosen.items() for k in ("p0", "ood")}
-    iql_part = values["iql", "p0"] >= 0.8 - TOLERANCE and values["iql", "ood"] <= values["iql", "p0"] - 0.1 + TOLERANCE
-    bc_part = values["bc", "p0"] <= 0.2 + TOLERANCE and values["bc", "ood"] <= 0.2 + TOLERANCE
-    measured = (f"IQM success at the last evaluation, p0 / ood: IQL {values['iql', 'p0']:.2f} / "
-                f"{values['iql', 'ood']:.2f}, BC {values['bc', 'p0']:.2f} / {values['bc', 'ood']:.2f}")
-    return Finding(6, claim, measured, _grade(iql_part + bc_part, 2))
+def offline_methods(groups) -> _Draft:
+    draft = _Draft(6, "IQL does well from p0 and drops from ood; BC fails from both with 0.5K demos", [])
+    iql, bc = pick(groups, "iql"), pick(groups, "bc")
+    if iql is None or bc is None or not (len(iql.steps) and len(bc.steps)):
+        draft.missing = _absent({_label("iql"): iql, _label("bc"): bc})
+        return draft
+    p0, ood = _final(iql, "success_p0"), _final(iql, "success_ood")
+    seeds = len(iql.runs)
+    bc_fails = (_final(bc, "success_p0") <= 0.2 + TOLERANCE) & (_final(bc, "success_ood") <= 0.2 + TOLERANCE)
+    draft.items += [
+        one_group("most seeds of iql (0.5K) end at success 0.8 or more from p0",
+                  int((p0 >= THRESHOLD - TOLERANCE).sum()), seeds, few=False),
+        one_group("most seeds of iql (0.5K) end at least 0.1 lower from ood than from p0",
+                  int((ood <= p0 - 0.1 + TOLERANCE).sum()), seeds, few=False),
+        one_group("most seeds of bc (0.5K) end at success 0.2 or less from both p0 and ood",
+                  int(bc_fails.sum()), len(bc.runs), few=False)]
+    return draft
 
 
-CHECKS = (sac_fails, auxss_faster_than_hybrids, hybrid_auxss_most_robust, omega_early_then_behind,
-          undirected_starts_slower, offline_methods)
-
-
-def check_findings(groups: list[Group]) -> list[Finding]:
-    """Findings 1-6 on these groups, the online ones cut to their common last step."""
-    groups = _cut(groups, common_step(groups))
-    return [check(groups) for check in CHECKS]
-
-
-def _summary_row(group: Group) -> str:
-    found = steps_to_threshold(group)
-    median = f"{found.median:,.0f}" if math.isfinite(found.median) else "never"
-    return (f"| {group.label} | {len(group.runs)} | {found.reached} | {median} | "
-            f"{_last(group, 'success_p0'):.2f} | {_last(group, 'success_ood'):.2f} |")
-
-
-SUMMARY_HEADER = ["| group | seeds | seeds reaching 0.8 | median steps to 0.8 | IQM p0 at the last | IQM ood at the last |",
-                  "|---|---:|---:|---:|---:|---:|"]
-
-
-def demo_size_rows(groups: list[Group]) -> list[str]:
-    """Finding 7: every default-configuration method with runs on both demo sets, 0.5K beside 7.5K
-    (online groups cut to their common last step)."""
-    groups, rows = _cut(groups, common_step(groups)), []
+def demo_size(groups) -> _Draft:
+    draft = _Draft(7, "With 7.5K demo transitions a method reaches 0.8 sooner or more often than with 0.5K", [],
+                   each=True)
     for method in dict.fromkeys(g.method for g in groups):
-        pair = [pick(groups, method, d) for d in (500, 7500)]
-        if all(pair):
-            rows += [_summary_row(g) for g in pair]
-    return SUMMARY_HEADER + rows if rows else []
+        small, large = (pick(groups, method, d) for d in DEMO_SIZES)
+        if small is not None and large is not None:
+            draft.items.append(reach_comparison(large, small, f"{_label(method, 7500)} against {_label(method)}"))
+    if not draft.items:
+        draft.missing = ["a method with both 0.5K and 7.5K runs"]
+    return draft
 
 
-def variant_rows(groups: list[Group], method: str = "auxss") -> list[str]:
-    """Finding 8: the method's default group (0.5K) and each of its variants (ablations), online
-    groups cut to their common last step."""
-    groups = _cut(groups, common_step(groups))
+def ablations(groups, method: str = "auxss") -> _Draft:
+    draft = _Draft(8, "AuxSS as in the paper reaches 0.8 sooner or more often than each of its variants (ablations)",
+                   [], each=True)
     base = pick(groups, method)
     variants = [g for g in groups_of(groups, method, 500) if not is_default(g)]
     if base is None or not variants:
-        return []
-    return SUMMARY_HEADER + [_summary_row(g) for g in [base, *variants]]
+        draft.missing = ([_label(method)] if base is None else []) + ([] if variants else [f"a variant of {method}"])
+        return draft
+    for variant in variants:
+        draft.items.append(reach_comparison(base, variant, f"{base.label} against {variant.label}"))
+    return draft
+
+
+CHECKS = (sac_fails, auxss_faster_than_hybrids, hybrid_auxss_most_robust, omega_early_then_behind,
+          undirected_starts_slower, offline_methods, demo_size, ablations)
+
+
+def _no_common_seeds(claim: str) -> Part:
+    return Part(claim, "the groups share no seed or evaluation step", MISSING)
+
+
+def check_findings(groups: list[Group]) -> list[Finding]:
+    """Findings 1-8 on these groups, the online ones cut to their common last step, every comparison's
+    p-values corrected as one family."""
+    groups = _cut(groups, common_step(groups))
+    drafts = [check(groups) for check in CHECKS]
+    pending = [item for d in drafts for item in d.items if isinstance(item, Pending)]
+    settled = iter(settle(pending))
+    findings = []
+    for d in drafts:
+        parts = [next(settled) if isinstance(item, Pending) else item if item is not None
+                 else _no_common_seeds(d.claim) for item in d.items]
+        if d.missing:
+            absent = NOT_RUN if parts and d.partial else MISSING
+            parts.append(Part("groups not run", ", ".join(d.missing), absent))
+        verdicts = [p.verdict for p in parts if p.verdict != NOT_RUN]
+        if d.each and len(set(verdicts)) > 1 and MISSING not in verdicts:
+            verdict = PER_COMPARISON
+        else:
+            verdict = min(verdicts, key=WEAKEST_FIRST.index) if verdicts else MISSING
+        findings.append(Finding(d.number, d.claim, parts, verdict))
+    return findings
