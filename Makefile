@@ -42,7 +42,7 @@ bench: setup
 
 # docs/results.md's tables and figures, regenerated from the committed metrics in results/ (no training):
 # every method at the 100k protocol budget, AuxSS, SAC and Omega-SS at the paper's 300k, the AuxSS ablations,
-# and the start-strategy calibration on the tuning seeds (docs/calibration.md).
+# the start-strategy calibration on the tuning seeds (docs/calibration.md), and the task suite's screening.
 report: setup
 	$(BIN)/lava-bridge-bench report results/protocol --budget 100000 --out docs/report
 	$(BIN)/lava-bridge-bench report results/protocol/auxss-d500 results/protocol/sac-d500 results/protocol/omega_ss-d500 \
@@ -55,6 +55,7 @@ report: setup
 	$(BIN)/lava-bridge-bench report results/calibration/strategies/auxss_base results/calibration/strategies/auxss_delta001 \
 	    results/calibration/strategies/auxss_sigma015 results/calibration/strategies/goaldist_base \
 	    results/calibration/strategies/goaldist_growth101 --budget 100000 --seeds 100-114 --out docs/report_calibration_confirm
+	$(BIN)/lava-bridge-bench report results/suite/screening --budget 100000 --seeds 100-104 --out docs/report_screening
 
 setup: gl $(STAMP)
 
