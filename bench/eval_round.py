@@ -11,7 +11,8 @@ ways, on the same actors:
 
 Both run on untrained actors (SAC's, default 64x64; their deterministic pushes mostly hold the ball
 against a wall until the time limit: the longest round) and on behaviour-cloned ones (`--bc-updates`
-updates on the 500-transition demo set, 64x64: some episodes reach the goal, some fall into lava).
+updates on the 500-transition demo set, 64x64, trained through the trainer), which steer along the
+demos' path instead.
 The results of the two ways are compared, seed by seed, and must be equal. Times are wall time and
 this process's CPU time (`time.process_time`, which other programs on a shared machine do not
 inflate); the ratio is the per-seed round's seconds over the batched round's.
