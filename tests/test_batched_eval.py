@@ -1,6 +1,10 @@
 """Batched evaluation (eval/evaluate.py) against the per-seed loop it replaced: every member of a
 seed-batched agent evaluated on its own, one single env per episode, stepped one by one."""
 
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 import torch
@@ -141,3 +145,11 @@ def test_too_small_a_vector_env_is_refused():
     agent = make_agent(config(), seeds=[0])
     with pytest.raises(ValueError, match="5 episodes need 5 sub-envs, the vector env has 4"):
         evaluate(agent, LavaBridgeVectorEnv(4, **config().env_kwargs()), "p0", 5)
+
+
+def test_the_benchmark_runs_and_finds_both_ways_equal():
+    bench = Path(__file__).resolve().parent.parent / "bench" / "eval_round.py"
+    result = subprocess.run([sys.executable, str(bench), "--quick"], capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr
+    rows = [line for line in result.stdout.splitlines() if line.startswith(("untrained", "BC actors"))]
+    assert len(rows) == 2 and all(row.endswith("identical") for row in rows), result.stdout
