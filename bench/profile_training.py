@@ -28,10 +28,10 @@ import mujoco
 import numpy as np
 import torch
 
-import lava_bridge_mj
 from lava_bridge_mj.agents.sac import SACConfig
 from lava_bridge_mj.eval import runner
 from lava_bridge_mj.eval.runner import Run, RunConfig
+from lava_bridge_mj.task_physics import LavaBridgeTask
 from lava_bridge_mj.vector import LavaBridgeVectorEnv
 
 seconds: defaultdict[str, float] = defaultdict(float)
@@ -40,7 +40,8 @@ in_evaluation = False
 
 
 def timed(function, label):
-    """`function` with its wall time added to `seconds[label]` (a callable label picks it per call)."""
+    """`function` with its wall time added to `seconds[label]` (a callable label picks it per call;
+    None: not counted, e.g. a call that an outer stopwatch already times)."""
     @functools.wraps(function)
     def wrapper(*args, **kwargs):
         start = time.perf_counter()
@@ -48,8 +49,9 @@ def timed(function, label):
             return function(*args, **kwargs)
         finally:
             name = label() if callable(label) else label
-            seconds[name] += time.perf_counter() - start
-            calls[name] += 1
+            if name is not None:
+                seconds[name] += time.perf_counter() - start
+                calls[name] += 1
     return wrapper
 
 
@@ -61,8 +63,10 @@ def instrument_classes() -> None:
     runner.SeedRun.observe = timed(runner.SeedRun.observe, "train: store transitions")
     runner.SeedRun.sample = timed(runner.SeedRun.sample, "train: replay sampling")
     runner.stack_batches = timed(runner.stack_batches, "train: replay sampling")
-    lava_bridge_mj.LavaBridgeEnv.step = timed(lava_bridge_mj.LavaBridgeEnv.step, "eval: env step (single envs)")
-    lava_bridge_mj.LavaBridgeEnv.reset = timed(lava_bridge_mj.LavaBridgeEnv.reset, "eval: env reset")
+    # evaluation steps each episode's MjData with the task itself (eval/evaluate.py); in training the
+    # same calls run inside the vector env's step and resets, which are timed as a whole
+    LavaBridgeTask.step = timed(LavaBridgeTask.step, lambda: "eval: env step (task.step)" if in_evaluation else None)
+    LavaBridgeVectorEnv.reset = timed(LavaBridgeVectorEnv.reset, lambda: "eval: env reset" if in_evaluation else None)
     Run.save = timed(Run.save, "checkpoints")
     evaluate = Run.evaluate
 
@@ -156,7 +160,7 @@ def main(argv: list[str] | None = None) -> None:
         total = time.perf_counter() - start
 
     rows = dict(seconds)
-    eval_parts = ("eval: env step (single envs)", "eval: env reset", "eval: actor forward")
+    eval_parts = ("eval: env step (task.step)", "eval: env reset", "eval: actor forward")
     rows["eval: rest (loop, episode bookkeeping, metric and policy files)"] = (
         rows.get("eval: total", 0.0) - sum(rows.get(k, 0.0) for k in eval_parts))
     train_parts = [k for k in rows if k.startswith(("train:", "checkpoints")) or k == "update: total"]
@@ -182,7 +186,7 @@ def main(argv: list[str] | None = None) -> None:
         value = rows.get(name, 0.0)
         indent = "  " if name.startswith(("update: ", "eval: ")) and not name.endswith("total") else ""
         print(f"{indent + name:<66} {value:>8.1f} {value / total:>7.1%}")
-    env = rows.get("train: env step (vector env)", 0.0) + rows.get("eval: env step (single envs)", 0.0)
+    env = rows.get("train: env step (vector env)", 0.0) + rows.get("eval: env step (task.step)", 0.0)
     print(f"\nenv stepping, training and evaluation together: {env:.1f} s ({env / total:.1%}); "
           f"update: {rows.get('update: total', 0.0) / total:.1%}; evaluation round: {rows.get('eval: total', 0.0):.1f} s")
 

@@ -36,7 +36,7 @@ from lava_bridge_mj.agents.methods import METHODS, learner_class
 from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
 from lava_bridge_mj.agents.seed_batch import stack_batches
 from lava_bridge_mj.eval.config import RunConfig, check_batch_fits
-from lava_bridge_mj.eval.evaluate import evaluate
+from lava_bridge_mj.eval.evaluate import EVAL_STARTS, MAX_EVAL_ENVS, evaluate
 from lava_bridge_mj.eval.provenance import code_provenance
 from lava_bridge_mj.eval.run_files import (CHECKPOINTS, VIDEOS, DamagedFileError, RunDirectoryError,
                                            append_provenance, check_run_directory, locked, read_checkpoint,
@@ -52,20 +52,6 @@ class RunInterrupted(Exception):
     def __init__(self, signum: int, step: int):
         super().__init__(f"stopped by {signal.Signals(signum).name} at step {step} after writing a checkpoint")
         self.signum, self.step = signum, step
-
-
-class PolicyDiverged(ValueError):
-    """A policy produced a non-finite action: its networks diverged."""
-
-
-def _finite_policy(policy):
-    """`policy`, raising PolicyDiverged instead of returning a non-finite action."""
-    def act(obs: np.ndarray) -> np.ndarray:
-        actions = policy(obs)
-        if not np.isfinite(actions).all():
-            raise PolicyDiverged(f"its evaluation policy's actions are not finite ({actions.reshape(-1, 2)[0]})")
-        return actions
-    return act
 
 
 def make_agent(config: RunConfig, seeds: Sequence[int], learner: str | None = None):
@@ -109,13 +95,17 @@ class Run:
             raise ValueError(f"seeds must be distinct, got {seeds}")
         self.config = configs[0]
         self.method = method = METHODS[self.config.method]
-        # evaluation resets every env with a fixed seed, so one of them can serve as the strategies' probe
-        self.eval_envs = [self.config.make_env() for _ in range(self.config.eval_episodes)]
+        # every seed's evaluation episodes in one vector env (a group of seeds at a time if they need
+        # more than MAX_EVAL_ENVS sub-envs); episodes are reset with fixed seeds before every round
+        episodes = self.config.eval_episodes
+        seeds_at_once = min(len(configs), max(1, MAX_EVAL_ENVS // episodes))
+        self.eval_envs = LavaBridgeVectorEnv(seeds_at_once * episodes, **self.config.env_kwargs())
         # the seeds share the config's demo set; the buffer is never written, so one copy serves all
         demos = demo_buffer(self.config) if method.demos != "none" else None
         # one vector env steps every seed's episode: sub-env i is seed i's, seeded with that seed
         self.envs = LavaBridgeVectorEnv(len(configs), **self.config.env_kwargs())
-        self.seed_runs = [SeedRun(c, d, probe=self.eval_envs[0], envs=self.envs, index=i, demos=demos)
+        probe = self.config.make_env()  # an env of the task for the strategies' own rollouts (Omega-SS)
+        self.seed_runs = [SeedRun(c, d, probe=probe, envs=self.envs, index=i, demos=demos)
                           for i, (c, d) in enumerate(zip(configs, out_dirs))]
         self._start_episodes(np.ones(len(configs), dtype=bool), seeds=seeds)
         self.agent = make_agent(self.config, seeds)
@@ -264,17 +254,17 @@ class Run:
 
     def evaluate(self) -> list[dict[str, float]]:
         """Each seed's deterministic policy on the fixed p0 and ood episodes; rows written to each run."""
+        scores = {}
+        for start in EVAL_STARTS:
+            members = np.flatnonzero(self.active)  # a seed whose policy diverged stops evaluating too
+            scores[start], diverged = evaluate(self.agent, self.eval_envs, start, self.config.eval_episodes, members)
+            for i, reason in sorted(diverged.items()):
+                self._stop_diverged(np.arange(len(self.seed_runs)) == i, reason)
         rows = []
         for i, seed_run in enumerate(self.seed_runs):
             if not self.active[i]:
                 continue
-            policy = _finite_policy(self.policy(i))
-            try:
-                p0 = evaluate(policy, self.eval_envs, "p0")
-                ood = evaluate(policy, self.eval_envs, "ood")
-            except PolicyDiverged as error:
-                self._stop_diverged(np.arange(len(self.seed_runs)) == i, str(error))
-                continue
+            p0, ood = (scores[start][i] for start in EVAL_STARTS)
             actor = {name: tensor[i:i + 1].clone() for name, tensor in self.agent.actor.state_dict().items()}
             horizon = self.guide.curricula[i].horizon if self.guide is not None else float("nan")
             rows.append(seed_run.record(self.step, p0, ood, actor, self.elapsed, horizon))

@@ -1,0 +1,142 @@
+"""One evaluation round of a seed batch, the per-seed way and the batched way, side by side.
+
+A round is every seed's deterministic policy on `--episodes` p0 and `--episodes` ood episodes. Two
+ways, on the same actors:
+
+  per seed  the loop the trainer ran before batched evaluation: seed by seed and start by start, one
+            single env per episode, stepped one by one, and each step one call of the seed's policy
+            (`agent.policy(i)`, which runs every member of the stacked actor on that seed's rows)
+  batched   eval/evaluate.py's `evaluate`, as the trainer runs it now: every seed's episodes of one
+            start distribution in one LavaBridgeVectorEnv, one actor call per step for all seeds
+
+Both run on untrained actors (SAC's, default 64x64; their deterministic pushes mostly hold the ball
+against a wall until the time limit: the longest round) and on behaviour-cloned ones (`--bc-updates`
+updates on the 500-transition demo set, 64x64, trained through the trainer), which steer along the
+demos' path instead.
+The results of the two ways are compared, seed by seed, and must be equal. Times are wall time and
+this process's CPU time (`time.process_time`, which other programs on a shared machine do not
+inflate); the ratio is the per-seed round's seconds over the batched round's.
+
+    python bench/eval_round.py                 # 25 seeds, 50 + 50 episodes (tens of minutes under load)
+    python bench/eval_round.py --quick         # 2 seeds, 2 + 2 episodes, 50 steps: a smoke test
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import torch
+
+from lava_bridge_mj.eval.evaluate import EVAL_SEED, EVAL_STARTS, MAX_EVAL_ENVS, evaluate
+from lava_bridge_mj.eval.runner import Run, RunConfig, make_agent
+from lava_bridge_mj.vector import LavaBridgeVectorEnv
+
+
+def per_seed_round(agent, envs, horizon):
+    """The per-seed evaluation the trainer ran before batching (its code, for comparison)."""
+    scores = {start: {} for start in EVAL_STARTS}
+    for k in range(agent.num_seeds):
+        policy = agent.policy(k)
+        for start in EVAL_STARTS:
+            n = len(envs)
+            obs = np.stack([env.reset(seed=EVAL_SEED + i, options={"start": start})[0] for i, env in enumerate(envs)])
+            running, returns, success = np.ones(n, dtype=bool), np.zeros(n), np.zeros(n, dtype=bool)
+            for _ in range(horizon):
+                active = np.flatnonzero(running)
+                if active.size == 0:
+                    break
+                actions = policy(obs[active])
+                if not np.isfinite(actions).all():
+                    raise ValueError(f"seed {k}'s actions are not finite")
+                for action, i in zip(actions, active):
+                    obs[i], reward, terminated, _, info = envs[i].step(action)
+                    returns[i] += reward
+                    if terminated:
+                        running[i] = False
+                        success[i] = info["is_success"]
+            scores[start][k] = {"success": float(success.mean()), "return": float(returns.mean())}
+    return scores
+
+
+def batched_round(agent, envs, episodes, horizon):
+    scores = {}
+    for start in EVAL_STARTS:
+        scores[start], diverged = evaluate(agent, envs, start, episodes, horizon=horizon)
+        assert not diverged, diverged
+    return scores
+
+
+def timed(function, *args):
+    wall, cpu = time.perf_counter(), time.process_time()
+    result = function(*args)
+    return result, time.perf_counter() - wall, time.process_time() - cpu
+
+
+def behaviour_cloned(seeds: int, updates: int):
+    """A BC agent of `seeds` seeds (64x64 actor) after `updates` updates, trained through the trainer."""
+    configs = [RunConfig(method="bc", seed=s, steps=updates, eval_every=updates, eval_episodes=1,
+                         bc={"hidden_sizes": [64, 64]}) for s in range(seeds)]
+    with tempfile.TemporaryDirectory() as out:
+        dirs = [Path(out) / f"seed{s}" for s in range(seeds)]
+        for d in dirs:
+            d.mkdir()
+        run = Run(configs, dirs)
+        run.train(progress=False)
+    return run.agent
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=25)
+    parser.add_argument("--episodes", type=int, default=50, help="per start distribution")
+    parser.add_argument("--horizon", type=int, default=500)
+    parser.add_argument("--bc-updates", type=int, default=1000, help="0: untrained actors only")
+    parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--quick", action="store_true", help="2 seeds, 2 + 2 episodes, 50 steps, 20 BC updates")
+    args = parser.parse_args(argv)
+    if args.quick:
+        args.seeds, args.episodes, args.horizon, args.bc_updates = 2, 2, 50, 20
+    torch.set_num_threads(args.threads)
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                                cwd=Path(__file__).parent).stdout.strip() or "unknown"
+    except OSError:
+        commit = "unknown"
+    given = sys.argv[1:] if argv is None else argv
+    print(f"# python bench/eval_round.py {' '.join(given)}".rstrip() + f" (commit {commit}, "
+          f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())})")
+    print(f"python {platform.python_version()} | torch {torch.__version__} | mujoco {mujoco.__version__} | "
+          f"numpy {np.__version__} | {args.threads} torch thread(s) | {os.cpu_count()} CPUs, load average at "
+          f"start {os.getloadavg()[0]:.1f} (a shared machine: other programs ran beside it; compare the ratios)")
+    print(f"round: {args.seeds} seeds x ({args.episodes} p0 + {args.episodes} ood episodes), horizon {args.horizon}")
+
+    config = RunConfig(method="auxss")
+    singles = [config.make_env() for _ in range(args.episodes)]
+    vector = LavaBridgeVectorEnv(min(args.seeds, max(1, MAX_EVAL_ENVS // args.episodes)) * args.episodes,
+                                 **config.env_kwargs())
+    agents = {"untrained SAC actors (64x64)": make_agent(config, list(range(args.seeds)))}
+    if args.bc_updates:
+        agents[f"BC actors, {args.bc_updates} updates (64x64)"] = behaviour_cloned(args.seeds, args.bc_updates)
+
+    print(f"\n{'actors':<34} {'p0 / ood success':>17} {'per seed: wall, CPU s':>22} {'batched: wall, CPU s':>21} "
+          f"{'ratio wall':>10} {'ratio CPU':>9}  results")
+    for name, agent in agents.items():
+        old, old_wall, old_cpu = timed(per_seed_round, agent, singles, args.horizon)
+        new, new_wall, new_cpu = timed(batched_round, agent, vector, args.episodes, args.horizon)
+        success = " / ".join(f"{np.mean([s['success'] for s in new[start].values()]):.2f}" for start in EVAL_STARTS)
+        print(f"{name:<34} {success:>17} {old_wall:>12.1f}, {old_cpu:>7.1f} {new_wall:>11.1f}, {new_cpu:>7.1f} "
+              f"{old_wall / new_wall:>10.2f} {old_cpu / new_cpu:>9.2f}  {'identical' if old == new else 'DIFFERENT'}",
+              flush=True)
+
+
+if __name__ == "__main__":
+    main()
