@@ -87,8 +87,9 @@ def _map_seed_axis(tree: Any, fn) -> Any:
         return {key: _map_seed_axis(value, fn) for key, value in tree.items()}
     if isinstance(tree, list):
         return [_map_seed_axis(value, fn) for value in tree]
-    if isinstance(tree, torch.Tensor) and tree.dim() >= 1:
-        return fn(tree)
+    if isinstance(tree, torch.Tensor):
+        # a copy of a shared scalar too: Adam steps its count in place, and a state must not move with it
+        return fn(tree) if tree.dim() >= 1 else tree.clone()
     return tree
 
 
@@ -105,7 +106,7 @@ def _concat_seed_axis(trees: Sequence[Any]) -> Any:
     if any(not (torch.equal(t, first) if isinstance(t, torch.Tensor) else t == first) for t in trees[1:]):
         raise ValueError("seed states disagree on a shared value (e.g. optimiser step counts): "
                          "only checkpoints taken at the same step can train in one batch")
-    return first
+    return first.clone() if isinstance(first, torch.Tensor) else first  # Adam steps its count in place
 
 
 WHOLE_VECTORS = 64

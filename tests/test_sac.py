@@ -334,6 +334,15 @@ def test_seed_states_round_trip_into_another_batch():
     assert torch.equal(exp_avg, agent.actor_optimizer.state_dict()["state"][0]["exp_avg"][[0, 2]])
 
 
+def test_a_seed_state_does_not_change_when_training_goes_on():
+    """Adam counts its steps in place in tensors shared by all seeds: a seed state holds a copy."""
+    buffer = filled_buffer()
+    agent = run_updates([0], 2, buffer)
+    state = agent.seed_state(0)
+    agent.update(stack_batches([buffer.sample(64, np.random.default_rng(0))]))
+    assert all(moments["step"].item() == 2 for moments in state["critic_optimizer"]["state"].values())
+
+
 def test_seed_states_of_different_steps_or_seeds_are_refused():
     buffer = filled_buffer()
     early, late = run_updates([0], 2, buffer), run_updates([1], 3, buffer)
