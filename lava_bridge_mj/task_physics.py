@@ -35,6 +35,10 @@ FREE_MOTION_SKIPS = mujoco.mjtDisableBit.mjDSBL_CONTACT | mujoco.mjtDisableBit.m
 """MuJoCo stages an env step in free motion skips: collision detection and the (then empty) constraint solver."""
 CLEARANCE_SLACK = 1e-3
 """Metres added to every distance of the free-motion test, far above its rounding errors."""
+HAZARD_SPEED_MARGIN = 1.5
+"""`clear_of_hazards` assumes the ball moves at up to this multiple of the top speed on each axis: a
+wall's contact can turn the ball around and push a sunken ball back out, which free motion alone
+never does (a push-out is millimetres per physics step, far below the top speed)."""
 
 
 class LavaBridgeTask:
@@ -48,8 +52,9 @@ class LavaBridgeTask:
     Attributes: `layout`, `model` (the compiled MjModel), `frame_skip` (physics steps per env step),
     `dt` (seconds per env step), the three rewards, `start_distributions` (name -> distribution),
     `observation_space` and `action_space` (one env's), `skip_free_contacts` (True: `step` runs an
-    env step in which `free_motion` rules out every contact without collision detection, the same
-    numbers faster; False: every physics step is checked, the reference for tests and benchmarks).
+    env step in which `free_motion` rules out every contact without collision detection, and one in
+    which `clear_of_hazards` rules out lava and the goal without checking each physics step, the
+    same numbers faster; False: every physics step is checked, the reference for tests and benchmarks).
     The free-motion bounds are read from the model when the task is made: after changing the model's
     physics (damping, gear, timestep, geoms), set `skip_free_contacts = False`. Forces applied from
     outside (`data.qfrc_applied`, `data.xfrc_applied`) are outside the bounds too.
@@ -135,6 +140,10 @@ class LavaBridgeTask:
             reach_base += h * b
             reach_per_speed += h * a
         self._reach = ((reach_base + CLEARANCE_SLACK).tolist(), reach_per_speed.tolist())
+        # lava and goal alone, for env steps that may touch a wall but nothing that ends the episode
+        hazard_reach = reach_base + CLEARANCE_SLACK + reach_per_speed * HAZARD_SPEED_MARGIN * self.layout.top_speed
+        self._hazard_reach = hazard_reach.tolist()
+        self._hazards = [box for g, box in zip(obstacles, self._obstacles) if self._touch_event[g]]
         disabled = mujoco.mjtDisableBit
         covered = (model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
                    and not model.opt.disableflags & (disabled.mjDSBL_EULERDAMP | disabled.mjDSBL_CLAMPCTRL)
@@ -146,7 +155,7 @@ class LavaBridgeTask:
                    and model.opt.density == 0 and model.opt.viscosity == 0
                    and (model.geom_bodyid[obstacles] == 0).all() and model.actuator_ctrllimited.all())
         if not covered:
-            self._obstacles = [(-math.inf, -math.inf, math.inf, math.inf)]
+            self._obstacles = self._hazards = [(-math.inf, -math.inf, math.inf, math.inf)]
 
     def free_motion(self, data: mujoco.MjData) -> bool:
         """True when, whatever the action, no contact (wall, lava or goal) can exist at any physics step
@@ -162,6 +171,22 @@ class LavaBridgeTask:
         (base_x, base_y), (per_x, per_y) = self._reach
         reach_x, reach_y = base_x + per_x * abs(vx), base_y + per_y * abs(vy)
         for low_x, low_y, high_x, high_y in self._obstacles:
+            if x - reach_x < high_x and x + reach_x > low_x and y - reach_y < high_y and y + reach_y > low_y:
+                return False
+        return True
+
+    def clear_of_hazards(self, data: mujoco.MjData) -> bool:
+        """True when no lava or goal contact can occur at any physics step of `data`'s coming env step,
+        whatever the action and whatever the walls do.
+
+        Walls may be touched: that step runs with MuJoCo's collisions and constraints, only the checks
+        for lava and the goal after each physics step are skipped. The ball's reach is bounded as in
+        `free_motion` but from `HAZARD_SPEED_MARGIN` times the top speed, whatever its speed now, since
+        a wall can turn it around.
+        """
+        x, y = data.qpos.tolist()
+        reach_x, reach_y = self._hazard_reach
+        for low_x, low_y, high_x, high_y in self._hazards:
             if x - reach_x < high_x and x + reach_x > low_x and y - reach_y < high_y and y + reach_y > low_y:
                 return False
         return True
@@ -245,8 +270,10 @@ class LavaBridgeTask:
         (lava) or the goal (success); either ends the episode.
 
         Where `free_motion` holds (and `skip_free_contacts`), the physics steps loop in C without
-        collision detection and constraint solver, which would have found nothing: the numbers are
-        those of the checked loop bit for bit (tests/test_task_physics.py compares the two).
+        collision detection and constraint solver, which would have found nothing; where only
+        `clear_of_hazards` does (a wall within reach, lava and goal out of it), they loop in C with
+        both, without the lava and goal checks, which would have found nothing. Either way the
+        numbers are those of the checked loop bit for bit (tests/test_task_physics.py compares them).
         """
         model = self.model
         data.ctrl[:] = action  # MuJoCo clips to the actuators' ctrlrange [-1, 1]
@@ -256,11 +283,14 @@ class LavaBridgeTask:
             flags = model.opt.disableflags
             model.opt.disableflags = flags | FREE_MOTION_SKIPS
             try:
-                mujoco.mj_step2(model, data)
-                if self.frame_skip > 1:
-                    mujoco.mj_step(model, data, nstep=self.frame_skip - 1)
+                self._step_in_c(data)
             finally:
                 model.opt.disableflags = flags
+            mujoco.mj_step1(model, data)
+            return self.step_reward, False, False
+        if self.skip_free_contacts and self.clear_of_hazards(data):
+            # walls only (a ball pushed on a wall): MuJoCo's own steps, with contacts, minus our checks
+            self._step_in_c(data)
             mujoco.mj_step1(model, data)
             return self.step_reward, False, False
         lava = success = False
@@ -276,6 +306,13 @@ class LavaBridgeTask:
                     break
         reward = self.goal_reward if success else self.lava_reward if lava else self.step_reward
         return reward, lava, success
+
+    def _step_in_c(self, data: mujoco.MjData) -> None:
+        """frame_skip physics steps in C, as the checked loop's mj_step2 / mj_step1 pairs do them,
+        leaving the last one's mj_step1 to the caller."""
+        mujoco.mj_step2(self.model, data)
+        if self.frame_skip > 1:
+            mujoco.mj_step(self.model, data, nstep=self.frame_skip - 1)
 
 
 def as_vector(name: str, value: Any, size: int = 2) -> np.ndarray:

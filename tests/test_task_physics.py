@@ -126,11 +126,12 @@ def test_free_motion_steps_equal_the_checked_loop_bit_for_bit(env_id):
     single_obs, _ = single_fast.reset(seed=3)
     np.testing.assert_array_equal(single_obs, single_checked.reset(seed=3)[0])
     follows_expert = (np.arange(k) < 3)[:, None]
-    free = success = lava = truncated = 0
+    free = walls_only = success = lava = truncated = 0
     for _ in range(900):
         noisy_expert = np.array([expert.act(o) for o in obs]) + rng.normal(0.0, 0.15, (k, 2))
         actions = np.where(follows_expert, noisy_expert, rng.uniform(-1, 1, (k, 2))).astype(np.float32)
         free += sum(fast.task.free_motion(data) for data in fast.datas)
+        walls_only += sum(fast.task.clear_of_hazards(data) and not fast.task.free_motion(data) for data in fast.datas)
         step = fast.step(actions)
         same_steps(step, checked.step(actions))
         obs = step[0]
@@ -146,7 +147,7 @@ def test_free_motion_steps_equal_the_checked_loop_bit_for_bit(env_id):
             single_obs, _ = single_fast.reset(options={"start": start})
             np.testing.assert_array_equal(single_obs, single_checked.reset(options={"start": start})[0])
     assert success and lava and truncated, (success, lava, truncated)  # every ending was compared
-    assert 0 < free < 900 * k, free  # both paths ran
+    assert 0 < free < 900 * k and walls_only, (free, walls_only)  # the three paths ran
 
 
 @pytest.mark.parametrize("env_id", ["LavaBridge-v0", "LavaBridgeLowDamping-v0", "LavaBridgeBend-v0"])
@@ -175,6 +176,41 @@ def test_free_motion_is_only_claimed_where_no_contact_can_occur(env_id):
             mujoco.mj_step1(task.model, data)
             assert data.ncon == 0, (state, push)
     assert accepted and refused, (accepted, refused)
+
+
+@pytest.mark.parametrize("env_id", ["LavaBridge-v0", "LavaBridgeLowDamping-v0", "LavaBridgeBend-v0",
+                                    "LavaBridgeDecoy-v0"])
+def test_clear_of_hazards_is_only_claimed_where_no_lava_or_goal_contact_can_occur(env_id):
+    """From random states that clear_of_hazards accepts, many against a wall (ball centres up to the
+    maze's edge, speeds up to the top speed), the strongest pushes find no lava or goal contact at any
+    physics step of the checked loop; and the walls-only steps it allows do touch walls."""
+    task = LavaBridgeTask(TASKS[env_id])
+    task.skip_free_contacts = False
+    data = mujoco.MjData(task.model)
+    rng = np.random.default_rng(2)
+    hx, hy = task.layout.half_extent
+    v = task.layout.top_speed
+    pushes = [np.array([dx, dy], dtype=np.float32) for dx in (-1, 0, 1) for dy in (-1, 0, 1) if dx or dy]
+    accepted = refused = wall_contacts = 0
+    for i in range(600):
+        state = rng.uniform([-hx, -hy, -v, -v], [hx, hy, v, v])
+        if i % 2:  # against a wall: pressed onto one axis's edge, moving into it
+            axis = rng.integers(2)
+            side = rng.choice([-1.0, 1.0])
+            state[axis] = side * (hx, hy)[axis]
+            state[2 + axis] = side * v
+        task.set_state(data, state[:2], state[2:])
+        if not task.clear_of_hazards(data):
+            refused += 1
+            continue
+        accepted += 1
+        data.ctrl[:] = pushes[rng.integers(len(pushes))]
+        for _ in range(task.frame_skip):
+            mujoco.mj_step2(task.model, data)
+            mujoco.mj_step1(task.model, data)
+            assert not task.lava_contact(data) and not task.goal_contact(data), state
+            wall_contacts += data.ncon > 0
+    assert accepted and refused and wall_contacts, (accepted, refused, wall_contacts)
 
 
 def test_observations_of_several_datas_are_their_observations():
