@@ -13,7 +13,11 @@ Both run on untrained actors (SAC's, default 64x64; their deterministic pushes m
 against a wall until the time limit: the longest round) and on behaviour-cloned ones (`--bc-updates`
 updates on the 500-transition demo set, 64x64, trained through the trainer), which steer along the
 demos' path instead.
-The results of the two ways are compared, seed by seed, and must be equal. Times are wall time and
+A third run is the batched way with the env's walls-only path switched off for it (a step that may
+touch a wall but neither lava nor the goal then runs the checked per-physics-step loop, as every such
+step did before `LavaBridgeTask.clear_of_hazards`); the per-seed way runs without it too, so it is
+the trainer's evaluation as it was before both changes.
+The results of the ways are compared, seed by seed, and must be equal. Times are wall time and
 this process's CPU time (`time.process_time`, which other programs on a shared machine do not
 inflate); the ratio is the per-seed round's seconds over the batched round's.
 
@@ -24,6 +28,7 @@ inflate); the ratio is the per-seed round's seconds over the batched round's.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import platform
 import subprocess
@@ -73,6 +78,18 @@ def batched_round(agent, envs, episodes, horizon):
         scores[start], diverged = evaluate(agent, envs, start, episodes, horizon=horizon)
         assert not diverged, diverged
     return scores
+
+
+@contextlib.contextmanager
+def without_walls_only_path(tasks):
+    """The tasks' steps as before the walls-only path: `clear_of_hazards` never holds (bench only)."""
+    for task in tasks:
+        task.clear_of_hazards = lambda data: False
+    try:
+        yield
+    finally:
+        for task in tasks:
+            del task.clear_of_hazards
 
 
 def timed(function, *args):
@@ -127,14 +144,19 @@ def main(argv: list[str] | None = None) -> None:
     if args.bc_updates:
         agents[f"BC actors, {args.bc_updates} updates (64x64)"] = behaviour_cloned(args.seeds, args.bc_updates)
 
-    print(f"\n{'actors':<34} {'p0 / ood success':>17} {'per seed: wall, CPU s':>22} {'batched: wall, CPU s':>21} "
-          f"{'ratio wall':>10} {'ratio CPU':>9}  results")
+    print(f"\n{'actors':<34} {'p0 / ood success':>17} {'per seed: wall, CPU s':>22} "
+          f"{'batched, checked near walls: wall, CPU s':>41} {'batched: wall, CPU s':>21} "
+          f"{'ratio CPU per seed / batched':>29} {'ratio CPU checked / batched':>28}  results")
     for name, agent in agents.items():
-        old, old_wall, old_cpu = timed(per_seed_round, agent, singles, args.horizon)
+        with without_walls_only_path([env.unwrapped.task for env in singles]):
+            old, old_wall, old_cpu = timed(per_seed_round, agent, singles, args.horizon)
+        with without_walls_only_path([vector.task]):
+            checked, checked_wall, checked_cpu = timed(batched_round, agent, vector, args.episodes, args.horizon)
         new, new_wall, new_cpu = timed(batched_round, agent, vector, args.episodes, args.horizon)
         success = " / ".join(f"{np.mean([s['success'] for s in new[start].values()]):.2f}" for start in EVAL_STARTS)
-        print(f"{name:<34} {success:>17} {old_wall:>12.1f}, {old_cpu:>7.1f} {new_wall:>11.1f}, {new_cpu:>7.1f} "
-              f"{old_wall / new_wall:>10.2f} {old_cpu / new_cpu:>9.2f}  {'identical' if old == new else 'DIFFERENT'}",
+        same = "identical" if old == new == checked else "DIFFERENT"
+        print(f"{name:<34} {success:>17} {old_wall:>12.1f}, {old_cpu:>7.1f} {checked_wall:>31.1f}, {checked_cpu:>7.1f} "
+              f"{new_wall:>11.1f}, {new_cpu:>7.1f} {old_cpu / new_cpu:>29.2f} {checked_cpu / new_cpu:>28.2f}  {same}",
               flush=True)
 
 
