@@ -11,7 +11,7 @@ export MUJOCO_GL ?= egl
 .PHONY: run expert-video task-pictures test bench report setup gl clean
 
 # The main job: what the package is for, AuxSS against SAC from p0 on the same 5 seeds (80,000 steps, as
-# one sweep of two 5-seed jobs, one per core; about 20 min on an idle 2-core machine), then the report
+# one sweep of two 5-seed jobs, one per core; 17 min on the idle 2-core machine, set-up included), then the report
 # (figures, per-seed reach counts, the pairwise tests), its two comparison tables printed, and a
 # rollout video of AuxSS's seed 0. Safe to run again: the sweep skips finished runs and resumes others.
 MAIN_STEPS ?= 80000
