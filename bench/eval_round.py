@@ -31,7 +31,6 @@ import argparse
 import contextlib
 import os
 import platform
-import subprocess
 import sys
 import tempfile
 import time
@@ -44,6 +43,7 @@ import torch
 from lava_bridge_mj.eval.evaluate import EVAL_SEED, EVAL_STARTS, MAX_EVAL_ENVS, evaluate
 from lava_bridge_mj.eval.runner import Run, RunConfig, make_agent
 from lava_bridge_mj.vector import LavaBridgeVectorEnv
+from difficulty import code_version  # bench/ is on sys.path when this script runs
 
 
 def per_seed_round(agent, envs, horizon):
@@ -123,11 +123,7 @@ def main(argv: list[str] | None = None) -> None:
     if args.quick:
         args.seeds, args.episodes, args.horizon, args.bc_updates = 2, 2, 50, 20
     torch.set_num_threads(args.threads)
-    try:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                                cwd=Path(__file__).parent).stdout.strip() or "unknown"
-    except OSError:
-        commit = "unknown"
+    commit = code_version()
     given = sys.argv[1:] if argv is None else argv
     print(f"# python bench/eval_round.py {' '.join(given)}".rstrip() + f" (commit {commit}, "
           f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())})")

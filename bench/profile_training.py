@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import functools
 import platform
-import subprocess
 import sys
 import tempfile
 import time
@@ -33,6 +32,7 @@ from lava_bridge_mj.eval import runner
 from lava_bridge_mj.eval.runner import Run, RunConfig
 from lava_bridge_mj.task_physics import LavaBridgeTask
 from lava_bridge_mj.vector import LavaBridgeVectorEnv
+from difficulty import code_version  # bench/ is on sys.path when this script runs
 
 seconds: defaultdict[str, float] = defaultdict(float)
 calls: defaultdict[str, int] = defaultdict(int)
@@ -140,11 +140,7 @@ def main(argv: list[str] | None = None) -> None:
     if args.quick:
         args.seeds, args.steps, args.learning_starts, args.eval_episodes = 2, 300, 100, 2
     torch.set_num_threads(args.threads)
-    try:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                                cwd=Path(__file__).parent).stdout.strip() or "unknown"
-    except OSError:
-        commit = "unknown"
+    commit = code_version()
     sac = SACConfig(learning_starts=args.learning_starts)
     configs = [RunConfig(method=args.method, seed=s, steps=args.steps, eval_every=args.steps,
                          eval_episodes=args.eval_episodes, sac=sac) for s in range(args.seeds)]
