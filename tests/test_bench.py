@@ -16,6 +16,8 @@ BENCH = Path(__file__).resolve().parent.parent / "bench"
     (["single_seed_speed.py", "--quick"], "ratio this tree / 5eff605"),
     (["sweep_scaling.py", "--quick"], "local, 2 workers"),  # about 45 s, most of it process and Ray start-up
     (["threads_under_load.py", "--seconds", "6"], "PASSIVE (CLI default)"),
+    (["protocol_throughput.py", "--quick", "--cases", "sweep"], "sweep (working tree)"),
+    (["update_speed.py", "--quick"], "ref / this tree"),
 ])  # difficulty.py runs and prints its figures in test_difficulty_writes_a_table_row_per_task_with_its_command
 def test_bench_script_runs_and_prints_figures(argv, expected):
     result = subprocess.run([sys.executable, str(BENCH / argv[0]), *argv[1:]], capture_output=True, text=True,

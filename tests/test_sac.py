@@ -224,7 +224,8 @@ def test_critic_layer_norm_normalises_each_members_hidden_units():
             init_member(q, i, torch.Generator().manual_seed(i))
         relus = [m for m in q.q1 if isinstance(m, torch.nn.ReLU)]
         inputs = []
-        hooks = [r.register_forward_hook(lambda m, args, out: inputs.append(args[0])) for r in relus]
+        # a copy before the ReLU runs: it works in place
+        hooks = [r.register_forward_pre_hook(lambda m, args: inputs.append(args[0].clone())) for r in relus]
         q(torch.randn(3, 50, 4) * 5, torch.rand(3, 50, 2))
         for h in hooks:
             h.remove()

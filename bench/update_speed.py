@@ -1,0 +1,94 @@
+"""The batched SAC update alone, this tree against a reference commit, side by side.
+
+Times `SAC.update` (64x64 networks, batch 256, one torch thread) on a fixed random batch at each
+number of seeds K, in subprocesses that alternate between the working tree's code and `--ref`'s
+(extracted with `git archive`), `--repeats` times each; prints the median milliseconds per update
+(CPU time of the process), seed-updates per second, and ref / this tree. Both trees start from the
+same seeds and batch, so it also prints whether their weights after the timed updates are identical.
+
+Usage: python bench/update_speed.py [--ref COMMIT] [--seeds 1,13,25] [--updates 60] [--repeats 3] [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from difficulty import code_version  # bench/ is on sys.path when this script runs
+from single_seed_speed import importable_tree
+
+ROOT = Path(__file__).resolve().parents[1]
+TIMED = """
+import hashlib, sys, time, torch
+from lava_bridge_mj.agents.configs import SACConfig
+from lava_bridge_mj.agents.sac import SAC
+torch.set_num_threads(1)
+k, updates, hidden = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
+agent = SAC(4, 2, SACConfig(hidden_sizes=(hidden, hidden)), seeds=range(k))
+g = torch.Generator().manual_seed(0)
+batch = {"obs": torch.randn(k, 256, 4, generator=g), "action": torch.rand(k, 256, 2, generator=g) * 2 - 1,
+         "reward": (torch.rand(k, 256, generator=g) < 0.1).float(), "next_obs": torch.randn(k, 256, 4, generator=g),
+         "terminated": (torch.rand(k, 256, generator=g) < 0.05).float()}
+for _ in range(5):
+    agent.update(batch)
+start = time.process_time()
+for _ in range(updates):
+    agent.update(batch)
+seconds = (time.process_time() - start) / updates
+digest = hashlib.sha256(b"".join(p.detach().numpy().tobytes() for p in agent.actor.parameters())).hexdigest()
+print(seconds, digest[:16])
+"""
+
+
+def timed(path: Path, k: int, updates: int, hidden: int) -> tuple[float, str]:
+    env = {**os.environ, "PYTHONPATH": str(path), "OMP_NUM_THREADS": "1"}
+    result = subprocess.run([sys.executable, "-c", TIMED, str(k), str(updates), str(hidden)], env=env,
+                            cwd=path, capture_output=True, text=True, check=True)
+    seconds, digest = result.stdout.split()
+    return float(seconds), digest
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--ref", default="228f864", help="the reference commit (default: 228f864)")
+    parser.add_argument("--seeds", default="1,13,25", help="numbers of seeds K (default: 1,13,25)")
+    parser.add_argument("--updates", type=int, default=60, help="timed updates per subprocess (default: 60)")
+    parser.add_argument("--repeats", type=int, default=3, help="subprocesses per tree and K (default: 3)")
+    parser.add_argument("--quick", action="store_true", help="K = 2, 16 units, 5 updates, one repeat")
+    args = parser.parse_args(argv)
+    ks = [2] if args.quick else [int(k) for k in args.seeds.split(",")]
+    updates, repeats, hidden = (5, 1, 16) if args.quick else (args.updates, args.repeats, 64)
+    print(f"$ python bench/update_speed.py {' '.join(argv if argv is not None else sys.argv[1:])}")
+    print(f"this tree: {code_version()}; ref: {args.ref}; {hidden}x{hidden}, batch 256, one thread, "
+          f"{updates} updates x {repeats} repeats")
+    with tempfile.TemporaryDirectory(prefix="update-speed-") as scratch:
+        scratch = Path(scratch)
+        archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.ref], capture_output=True)
+        if archive.returncode != 0:
+            parser.error(f"--ref {args.ref!r} is not a commit of this repository")
+        (scratch / "ref-tree").mkdir()
+        subprocess.run(["tar", "-x", "-C", str(scratch / "ref-tree")], input=archive.stdout, check=True)
+        trees = {"this tree": importable_tree(ROOT, scratch / "path-working"),
+                 "ref": importable_tree(scratch / "ref-tree", scratch / "path-ref")}
+        print(f"{'K':>3} {'this tree: ms':>14} {'ref: ms':>9} {'seed-updates/s':>15} {'ref / this tree':>16}  weights")
+        for k in ks:
+            times: dict[str, list[float]] = {name: [] for name in trees}
+            digests: dict[str, str] = {}
+            for _ in range(repeats):
+                for name, path in trees.items():  # alternated, so load changes hit both alike
+                    seconds, digests[name] = timed(path, k, updates, hidden)
+                    times[name].append(seconds)
+            ours, ref = statistics.median(times["this tree"]), statistics.median(times["ref"])
+            same = "identical" if digests["this tree"] == digests["ref"] else "differ"
+            print(f"{k:>3} {ours * 1e3:>14.2f} {ref * 1e3:>9.2f} {k / ours:>15.0f} {ref / ours:>16.2f}  {same}")
+    print(f"load average after: {os.getloadavg()[0]:.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
