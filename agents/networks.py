@@ -138,19 +138,19 @@ class TanhGaussianActor(nn.Module):
                 generators: Sequence[torch.Generator] | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         """Sample (reparameterised, so gradients flow) an action and its log-prob, shape (members, batch).
 
-        `generators`, one per member, draw each member's noise, so a member's samples do not depend
-        on the others; None draws from torch's global generator.
+        `generators`, one per member and on the actor's device, draw each member's noise, so a
+        member's samples do not depend on the others; None draws from torch's global generator.
         In deterministic mode the action is tanh(mean) and the log-prob is that of the mean.
         """
         mean, log_std = self.distribution(obs)
         if deterministic:
             u = mean
         else:
-            shape, dtype = mean.shape[1:], mean.dtype
+            shape, dtype, device = mean.shape[1:], mean.dtype, mean.device
             if generators is None:
-                noise = torch.randn(mean.shape, dtype=dtype)
+                noise = torch.randn(mean.shape, dtype=dtype, device=device)
             else:
-                noise = torch.stack([torch.randn(shape, generator=g, dtype=dtype) for g in generators])
+                noise = torch.stack([torch.randn(shape, generator=g, dtype=dtype, device=device) for g in generators])
             u = mean + log_std.exp() * noise
         return torch.tanh(u), _squashed_log_prob(u, mean, log_std)
 

@@ -38,21 +38,24 @@ def expectile_loss(diff: torch.Tensor, expectile: float) -> torch.Tensor:
 class BC(SeedBatchedAgent):
     """Behaviour cloning for K seeds: maximise log pi(a_demo | s)."""
 
-    def __init__(self, obs_dim: int, act_dim: int, config: BCConfig | None = None, seeds: Sequence[int] = (0,)):
+    def __init__(self, obs_dim: int, act_dim: int, config: BCConfig | None = None, seeds: Sequence[int] = (0,),
+                 device: torch.device | str = "cpu"):
         self.config = config = config or BCConfig()
-        self.obs_dim, self.seeds = obs_dim, tuple(int(s) for s in seeds)
+        self.obs_dim, self.seeds, self.device = obs_dim, tuple(int(s) for s in seeds), torch.device(device)
         self.actor = TanhGaussianActor(len(self.seeds), obs_dim, act_dim, config.hidden_sizes)
-        for i, seed in enumerate(self.seeds):
+        for i, seed in enumerate(self.seeds):  # on the CPU: the same initial weights on every device
             init_member(self.actor, i, torch.Generator().manual_seed(seed))
-        self.generators = [torch.Generator().manual_seed(seed) for seed in self.seeds]
+        self.actor.to(self.device)
+        self.generators = [torch.Generator(self.device).manual_seed(seed) for seed in self.seeds]
         self.optimizer = seed_adam(self.actor.parameters(), config.lr)
 
     def update(self, batch: dict[str, torch.Tensor]) -> dict[str, np.ndarray]:
+        batch = self.to_device(batch)
         loss = -self.actor.log_prob(batch["obs"], batch["action"]).mean(1)
         self.optimizer.zero_grad(set_to_none=True)
         loss.sum().backward()
         self.optimizer.step()
-        return {"actor_loss": loss.detach().numpy()}
+        return {"actor_loss": loss.detach().cpu().numpy()}
 
     def _parts(self) -> dict:
         return {"actor": self.actor, "optimizer": self.optimizer}
@@ -61,9 +64,10 @@ class BC(SeedBatchedAgent):
 class IQL(SeedBatchedAgent):
     """Implicit Q-learning for K seeds (see the module docstring for the losses)."""
 
-    def __init__(self, obs_dim: int, act_dim: int, config: IQLConfig | None = None, seeds: Sequence[int] = (0,)):
+    def __init__(self, obs_dim: int, act_dim: int, config: IQLConfig | None = None, seeds: Sequence[int] = (0,),
+                 device: torch.device | str = "cpu"):
         self.config = config = config or IQLConfig()
-        self.obs_dim, self.seeds = obs_dim, tuple(int(s) for s in seeds)
+        self.obs_dim, self.seeds, self.device = obs_dim, tuple(int(s) for s in seeds), torch.device(device)
         k = len(self.seeds)
         self.actor = TanhGaussianActor(k, obs_dim, act_dim, config.hidden_sizes)
         self.critic = TwinQ(k, obs_dim, act_dim, config.hidden_sizes)
@@ -72,14 +76,16 @@ class IQL(SeedBatchedAgent):
             init = torch.Generator().manual_seed(seed)
             for net in (self.actor, self.critic, self.value):
                 init_member(net, i, init)
+        for net in (self.actor, self.critic, self.value):
+            net.to(self.device)
         self.target_critic = copy.deepcopy(self.critic).requires_grad_(False)
-        self.generators = [torch.Generator().manual_seed(seed) for seed in self.seeds]
+        self.generators = [torch.Generator(self.device).manual_seed(seed) for seed in self.seeds]
         self.actor_optimizer = seed_adam(self.actor.parameters(), config.lr)
         self.critic_optimizer = seed_adam(self.critic.parameters(), config.lr)
         self.value_optimizer = seed_adam(self.value.parameters(), config.lr)
 
     def update(self, batch: dict[str, torch.Tensor]) -> dict[str, np.ndarray]:
-        config = self.config
+        config, batch = self.config, self.to_device(batch)
         obs, action = batch["obs"], batch["action"]
         with torch.no_grad():
             target_q = self.target_critic(obs, action)
@@ -112,7 +118,7 @@ class IQL(SeedBatchedAgent):
 
         soft_update(self.target_critic.parameters(), self.critic.parameters(), config.tau)
         stats = torch.stack([critic_loss.detach(), value_loss.detach(), actor_loss.detach(),
-                             0.5 * (q1.detach().mean(1) + q2.detach().mean(1))]).numpy()
+                             0.5 * (q1.detach().mean(1) + q2.detach().mean(1))]).cpu().numpy()
         return dict(zip(("critic_loss", "value_loss", "actor_loss", "q_mean"), stats))
 
     def _parts(self) -> dict:

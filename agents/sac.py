@@ -45,19 +45,21 @@ class SAC(SeedBatchedAgent):
     Tensors in and out carry the seed axis first: `act` maps observations (K, obs_dim) or
     (K, n, obs_dim) to actions of the same leading shape; `update` takes a batch of (K, B, ...) tensors.
 
-    Reproducibility: seed i's initial weights are drawn from `torch.Generator().manual_seed(seeds[i])`
-    and every action it samples (in `act` and in `update`) draws its noise from its own generator,
-    seeded the same way. torch's global RNG is never used, so given the same seed, config and data a seed
+    Reproducibility: seed i's initial weights are drawn on the CPU from
+    `torch.Generator().manual_seed(seeds[i])`, so they are the same on every device, and every action
+    it samples (in `act` and in `update`) draws its noise from its own generator on `device`, seeded
+    the same way. torch's global RNG is never used, so given the same seed, config and data a seed
     is bit-identical whatever else runs and whichever seeds share its batch. `seed_state(i)` and
     `load_seed_states` save and restore seeds one by one, so a seed's checkpoint can be resumed alone
     or in another batch.
     """
 
     def __init__(self, obs_dim: int, act_dim: int, config: SACConfig | None = None,
-                 seeds: Sequence[int] = (0,)):
+                 seeds: Sequence[int] = (0,), device: torch.device | str = "cpu"):
         self.config = config = config or SACConfig()
         self.obs_dim, self.act_dim = obs_dim, act_dim
         self.seeds = tuple(int(s) for s in seeds)
+        self.device = torch.device(device)
         k = len(self.seeds)
         if k == 0:
             raise ValueError("SAC needs at least one seed")
@@ -67,12 +69,14 @@ class SAC(SeedBatchedAgent):
             init = torch.Generator().manual_seed(seed)
             init_member(self.actor, i, init)
             init_member(self.critic, i, init)
+        self.actor.to(self.device)
+        self.critic.to(self.device)
         self.target_critic = copy.deepcopy(self.critic).requires_grad_(False)
         # parameter lists walked once: module traversal at every update cost ~5% of a 64-unit update
         self.critic_params = list(self.critic.parameters())
         self.target_params = list(self.target_critic.parameters())
-        self.generators = [torch.Generator().manual_seed(seed) for seed in self.seeds]
-        self.log_alpha = torch.full((k,), math.log(config.initial_alpha), requires_grad=True)
+        self.generators = [torch.Generator(self.device).manual_seed(seed) for seed in self.seeds]
+        self.log_alpha = torch.full((k,), math.log(config.initial_alpha), device=self.device, requires_grad=True)
         self.target_entropy = -float(act_dim) if config.target_entropy is None else config.target_entropy
 
         # seed_adam: a seed's updates are the same in any batch (see its docstring)
@@ -83,7 +87,7 @@ class SAC(SeedBatchedAgent):
     @property
     def alpha(self) -> np.ndarray:
         """The current entropy coefficients exp(log_alpha), one per seed."""
-        return self.log_alpha.detach().exp().numpy().copy()
+        return self.log_alpha.detach().exp().cpu().numpy().copy()
 
     @torch.no_grad()
     def td_target(self, batch: dict[str, torch.Tensor]) -> torch.Tensor:
@@ -97,6 +101,7 @@ class SAC(SeedBatchedAgent):
         """One gradient step on critics, actor and alpha for every seed, then a Polyak step on the
         target critics. Each loss is a sum over seeds of per-seed means, so seed i's gradient is exactly
         its own loss's. Returns per-seed statistics, arrays of shape (K,)."""
+        batch = self.to_device(batch)
         obs, action = batch["obs"], batch["action"]
 
         # Critics: regress both Q's onto the shared target.
@@ -129,7 +134,7 @@ class SAC(SeedBatchedAgent):
         soft_update(self.target_params, self.critic_params, self.config.tau)
 
         stats = torch.stack([critic_loss.detach(), actor_loss.detach(), alpha.squeeze(1),
-                             0.5 * (q1.detach().mean(1) + q2.detach().mean(1)), -log_prob.mean(1)]).numpy()
+                             0.5 * (q1.detach().mean(1) + q2.detach().mean(1)), -log_prob.mean(1)]).cpu().numpy()
         return dict(zip(("critic_loss", "actor_loss", "alpha", "q_mean", "entropy"), stats))
 
     def _parts(self) -> dict:

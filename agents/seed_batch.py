@@ -3,6 +3,11 @@
 An agent's networks, optimiser moments and scalars carry a leading seed axis (agents/networks.py).
 `seed_state(i)` cuts seed i's slice out of all of them, so a checkpoint holds one seed and a run can
 be resumed alone or in any batch; `load_seed_states` stacks such slices back together.
+
+An agent lives on one torch device (`device`, "cpu" by default): its networks, optimiser state,
+scalars and per-seed generators. It takes numpy observations and CPU replay batches and moves them
+there, and gives back numpy actions and statistics; a seed's state is always cut out as CPU tensors,
+so a checkpoint loads on any machine.
 """
 
 from __future__ import annotations
@@ -16,10 +21,12 @@ from torch import nn
 
 
 class SeedBatchedAgent:
-    """Base of SAC, BC and IQL. Subclasses set `seeds`, `generators` (one torch.Generator per seed),
-    `actor` (a TanhGaussianActor), `obs_dim`, and list their checkpointed parts in `_parts()`."""
+    """Base of SAC, BC and IQL. Subclasses set `seeds`, `device`, `generators` (one torch.Generator
+    per seed, on `device`), `actor` (a TanhGaussianActor), `obs_dim`, and list their checkpointed parts
+    in `_parts()`."""
 
     seeds: tuple[int, ...]
+    device: torch.device
     generators: list[torch.Generator]
     actor: nn.Module
     obs_dim: int
@@ -34,14 +41,19 @@ class SeedBatchedAgent:
     @torch.no_grad()
     def act(self, obs: np.ndarray, deterministic: bool = False) -> np.ndarray:
         """Actions in [-1, 1] for observations (K, obs_dim) or (K, n, obs_dim), seed i acting on obs[i]."""
-        obs_t = torch.as_tensor(obs, dtype=torch.float32)
+        obs_t = torch.as_tensor(obs, dtype=torch.float32, device=self.device)
         single = obs_t.dim() == 2
         if obs_t.dim() not in (2, 3) or obs_t.shape[0] != self.num_seeds:
             raise ValueError(f"expected observations of shape ({self.num_seeds}, [n,] {self.obs_dim}), "
                              f"got {tuple(obs_t.shape)}")
         action, _ = self.actor(obs_t.unsqueeze(1) if single else obs_t, deterministic=deterministic,
                                generators=self.generators)
-        return (action.squeeze(1) if single else action).numpy()
+        return (action.squeeze(1) if single else action).cpu().numpy()
+
+    def to_device(self, batch: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        """A (K, B, ...) batch (replay samples are CPU tensors) on the agent's device; on the CPU the
+        same tensors, not copies."""
+        return {name: tensor.to(self.device) for name, tensor in batch.items()}
 
     def policy(self, i: int = 0):
         """Seed i's deterministic policy (its evaluation behaviour): observations (n, obs_dim) or
@@ -54,24 +66,34 @@ class SeedBatchedAgent:
 
     def seed_state(self, i: int) -> dict[str, Any]:
         """Everything seed i needs to continue bit-identically (its data buffers are separate): its
-        slice of every network, optimiser moment and scalar, with the seed axis kept (length 1)."""
-        state = {name: _map_seed_axis(_state_of(part), lambda t: t[i:i + 1].clone())
+        slice of every network, optimiser moment and scalar, with the seed axis kept (length 1), as
+        CPU tensors whatever the agent's device, and its generator's state with that generator's device
+        type (a generator's state only loads into a generator of the same type)."""
+        state = {name: _map_seed_axis(_state_of(part), lambda t: _to_cpu(t[i:i + 1]))
                  for name, part in self._parts().items()}
-        state.update(seed=self.seeds[i], generator=self.generators[i].get_state())
+        state.update(seed=self.seeds[i], generator=self.generators[i].get_state(),
+                     generator_device=self.generators[i].device.type)
         return state
 
     def load_seed_states(self, states: Sequence[dict[str, Any]]) -> None:
         """Restore every seed from `seed_state` dicts, one per seed in order (possibly from different
-        runs' checkpoints); they must come from the same seeds and share optimiser step counts."""
+        runs' checkpoints); they must come from the same seeds and share optimiser step counts, and
+        their generators must be of this agent's device type: a seed trained on the CPU continues on
+        the CPU (and one trained on CUDA on CUDA), so its random stream continues exactly."""
         if [s["seed"] for s in states] != list(self.seeds):
             raise ValueError(f"states of seeds {[s['seed'] for s in states]} cannot load into seeds {list(self.seeds)}")
+        for state, generator in zip(states, self.generators):
+            trained_on = state.get("generator_device", "cpu")  # states from before devices were CPU ones
+            if trained_on != generator.device.type:
+                raise ValueError(f"seed {state['seed']} was trained on device {trained_on} and its random stream "
+                                 f"cannot continue on {generator.device.type}: continue it with --device {trained_on}")
         for name, part in self._parts().items():
             merged = _concat_seed_axis([s[name] for s in states])
             if isinstance(part, torch.Tensor):
                 with torch.no_grad():
-                    part.copy_(merged)  # in place: an optimiser may hold this tensor
+                    part.copy_(merged)  # in place (and onto its device): an optimiser may hold this tensor
             else:
-                part.load_state_dict(merged)
+                part.load_state_dict(merged)  # modules and optimisers move the CPU tensors to their device
         for generator, state in zip(self.generators, states):
             generator.set_state(state["generator"])
 
@@ -89,8 +111,13 @@ def _map_seed_axis(tree: Any, fn) -> Any:
         return [_map_seed_axis(value, fn) for value in tree]
     if isinstance(tree, torch.Tensor):
         # a copy of a shared scalar too: Adam steps its count in place, and a state must not move with it
-        return fn(tree) if tree.dim() >= 1 else tree.clone()
+        return fn(tree) if tree.dim() >= 1 else _to_cpu(tree)
     return tree
+
+
+def _to_cpu(tensor: torch.Tensor) -> torch.Tensor:
+    """A CPU copy of `tensor` (a copy on the CPU too: the agent goes on changing its own in place)."""
+    return tensor.to("cpu", copy=True)
 
 
 def _concat_seed_axis(trees: Sequence[Any]) -> Any:

@@ -1,5 +1,5 @@
 """What lava-bridge-bench's commands share (training, sweep, report, video): argument types with
-one-line usage errors (integers, seeds, seed lists), --config files, output paths, and SIGTERM
+one-line usage errors (integers, seeds, seed lists, devices), --config files, output paths, and SIGTERM
 handled like Ctrl-C. Light: no training code is imported."""
 
 from __future__ import annotations
@@ -31,6 +31,27 @@ def int_at_least(minimum: int, what: str, maximum: int | None = None):
 
 positive_int = int_at_least(1, "a positive integer")
 seed = int_at_least(0, f"an integer seed in [0, {MAX_SEED}]", MAX_SEED)
+
+
+def device(text: str) -> str:
+    """An argparse type: the torch device to train on, "cpu" or a CUDA device this machine has ("cuda",
+    "cuda:N"); anything else is a usage error naming what is available. torch is loaded only to
+    check a CUDA device."""
+    kind, colon, index = text.strip().partition(":")
+    if kind == "cpu" and not colon:
+        return "cpu"
+    if kind != "cuda" or (colon and not index.isdigit()):
+        raise argparse.ArgumentTypeError(f"expected cpu, cuda or cuda:N, got {text!r}")
+    import torch
+
+    if not torch.cuda.is_available():
+        raise argparse.ArgumentTypeError(f"{text.strip()} requested but torch.cuda.is_available() is False; "
+                                         "use --device cpu")
+    count = torch.cuda.device_count()
+    if colon and int(index) >= count:
+        raise argparse.ArgumentTypeError(f"{text.strip()} requested but this machine has {count} CUDA device(s), "
+                                         f"cuda:0 to cuda:{count - 1}")
+    return text.strip()
 
 
 def parse_seeds(text: str) -> list[int]:

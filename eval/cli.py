@@ -100,6 +100,11 @@ def build_parser(prog: str = "lava-bridge-bench") -> argparse.ArgumentParser:
                         help="torch CPU threads (default: 1). 1 avoids oversubscription when runs share cores "
                              "and keeps a seed's numbers independent of the seeds batched with it; 2 speeds "
                              "up a large --seeds batch on an otherwise idle 2-core machine")
+    parser.add_argument("--device", type=arguments.device, default="cpu",
+                        help="torch device the networks train on: cpu (default) or cuda / cuda:N where this "
+                             "machine has one; the envs, buffers and start strategies stay on the CPU. A run "
+                             "option, not part of the configuration: provenance.json records it, and a run "
+                             "continues on the device type it started on")
     parser.add_argument("--log", type=arguments.comma_list, default=(), metavar="SINKS",
                         help="also log every evaluation live to tensorboard and/or wandb (comma-separated; "
                              "each an optional extra): the metrics.csv scalars, the start strategy's "
@@ -169,7 +174,7 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         run = train(config, outs, seeds=seeds, resume=args.resume, overwrite=args.overwrite,
-                    progress=not args.no_progress, log=args.log, log_videos=args.log_videos)
+                    progress=not args.no_progress, log=args.log, log_videos=args.log_videos, device=args.device)
     except RunInterrupted as stop:
         print(f"lava-bridge-bench: {stop}; continue with: {resume_command(argv)}", file=sys.stderr)
         return 128 + stop.signum

@@ -45,7 +45,8 @@ def evaluate(agent: Any, envs: LavaBridgeVectorEnv, start: str, episodes: int,
     from `start`.
 
     `agent` is a seed-batched agent (agents/seed_batch.py): `agent.act(obs, deterministic=True)` maps
-    observations (K, rows, 4) to actions (K, rows, 2), member k acting on obs[k], K = `agent.num_seeds`.
+    observations (K, rows, 4) to actions (K, rows, 2), member k acting on obs[k], K = `agent.num_seeds`,
+    numpy in and out whatever the agent's torch device (one transfer each way per step).
     `members` (default: all K) are evaluated, `envs.num_envs // episodes` of them at a time.
 
     Returns (scores, diverged): scores[k] = {"success": ..., "return": ...} for each member whose

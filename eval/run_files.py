@@ -3,7 +3,8 @@
 A run directory holds:
     config.json         the full configuration (a resumed run must match it)
     provenance.json     per training session (the first, each resume): its steps, the code and library
-                        versions that ran it and the start strategy's settings, defaults filled in
+                        versions that ran it, the torch device it trained on and the start strategy's
+                        settings, defaults filled in
     metrics.csv         one row per evaluation (METRIC_FIELDS): steps, success from p0 and ood, returns,
                         SAC stats
     start_weights.npz   the start strategy's candidate states and its weights at every evaluation
@@ -259,7 +260,8 @@ def load_torch(path: str | Path, *, weights_only: bool = False) -> Any:
     if bad is not None:
         raise DamagedFileError(f"{path} is damaged: its record {bad!r} fails its CRC check")
     try:
-        return torch.load(io.BytesIO(payload), weights_only=weights_only)
+        # onto the CPU whatever device a tensor was saved from: every file loads on a machine without CUDA
+        return torch.load(io.BytesIO(payload), weights_only=weights_only, map_location="cpu")
     except Exception as error:  # noqa: BLE001 - a damaged archive can fail inside torch in many ways
         raise DamagedFileError(f"{path} cannot be read ({type(error).__name__}: {error})") from None
 

@@ -54,10 +54,11 @@ class RunInterrupted(Exception):
         self.signum, self.step = signum, step
 
 
-def make_agent(config: RunConfig, seeds: Sequence[int], learner: str | None = None):
-    """The method's learner (or the learner called `learner`: JSRL's guide) for `seeds`, stacked in one agent."""
+def make_agent(config: RunConfig, seeds: Sequence[int], learner: str | None = None, device: str = "cpu"):
+    """The method's learner (or the learner called `learner`: JSRL's guide) for `seeds`, stacked in one
+    agent on the torch `device`."""
     learner = learner or METHODS[config.method].learner
-    return learner_class(learner)(4, 2, getattr(config, learner), seeds=seeds)
+    return learner_class(learner)(4, 2, getattr(config, learner), seeds=seeds, device=device)
 
 
 def demo_buffer(config: RunConfig) -> ReplayBuffer:
@@ -81,10 +82,11 @@ class Run:
 
     `seed_runs[i]` holds seed i's env, strategy, buffers and files; `agent` is the method's learner
     (SAC, BC or IQL) over all seeds, `guide` JSRL's guide (agents/jsrl.py) for a method that has one.
-    `rows` and `strategy` are the first seed's (the single-seed case).
+    `rows` and `strategy` are the first seed's (the single-seed case). The learners' networks live on
+    the torch `device`; the envs, buffers and start strategies on the CPU.
     """
 
-    def __init__(self, configs: list[RunConfig], out_dirs: list[str | Path]):
+    def __init__(self, configs: list[RunConfig], out_dirs: list[str | Path], device: str = "cpu"):
         if not configs or len(configs) != len(out_dirs):
             raise ValueError(f"expected one run directory per configuration, got {len(configs)} and {len(out_dirs)}")
         shared = [{**c.to_dict(), "seed": None} for c in configs]
@@ -108,9 +110,12 @@ class Run:
         self.seed_runs = [SeedRun(c, d, probe=probe, envs=self.envs, index=i, demos=demos)
                           for i, (c, d) in enumerate(zip(configs, out_dirs))]
         self._start_episodes(np.ones(len(configs), dtype=bool), seeds=seeds)
-        self.agent = make_agent(self.config, seeds)
-        self.guide = JSRLGuide(self.config.jsrl, make_agent(self.config, seeds, self.config.jsrl.guide), seeds) \
-            if method.demos == "guide" else None
+        self.device = device
+        self.agent = make_agent(self.config, seeds, device=device)
+        self.guide = None
+        if method.demos == "guide":
+            self.guide = JSRLGuide(self.config.jsrl, make_agent(self.config, seeds, self.config.jsrl.guide, device),
+                                   seeds)
         self.step = 0
         self.elapsed = 0.0  # wall time of earlier sessions of this run
         self.stop_signal: int | None = None  # set by SIGINT/SIGTERM: checkpoint and stop after this step
@@ -265,7 +270,8 @@ class Run:
             if not self.active[i]:
                 continue
             p0, ood = (scores[start][i] for start in EVAL_STARTS)
-            actor = {name: tensor[i:i + 1].clone() for name, tensor in self.agent.actor.state_dict().items()}
+            actor = {name: tensor[i:i + 1].to("cpu", copy=True)  # a CPU snapshot: it loads anywhere
+                     for name, tensor in self.agent.actor.state_dict().items()}
             horizon = self.guide.curricula[i].horizon if self.guide is not None else float("nan")
             rows.append(seed_run.record(self.step, p0, ood, actor, self.elapsed, horizon))
             if self.sinks[i] or self.video_env is not None:
@@ -366,7 +372,7 @@ class Run:
 
 def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seeds: Sequence[int] | None = None,
           resume: bool = False, overwrite: bool = False, progress: bool | str | Path = True, log: Sequence[str] = (),
-          log_videos: bool = False) -> Run:
+          log_videos: bool = False, device: str = "cpu") -> Run:
     """Train `config` into `out_dir` and return the finished Run.
 
     With `seeds`, train those seeds of `config` together in one batch, seed seeds[i] into out_dir[i]
@@ -380,6 +386,10 @@ def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seed
     `log` names live tracking sinks ("tensorboard", "wandb": eval/tracking.py) that each seed's
     evaluations go to as well; `log_videos` writes each evaluation's rollouts from p0 and ood to
     videos/step_N.mp4 (and to the sinks).
+
+    `device`: the torch device the learners train on ("cpu", "cuda", "cuda:N"); a run option like
+    torch's thread count, not part of the configuration, so provenance.json records it per session.
+    A run continues only on the device type it was trained on (agents/seed_batch.py).
     """
     log = check_sinks(log)
     check_batch_fits(config, 1 if seeds is None else len(seeds))
@@ -390,7 +400,7 @@ def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seed
         dirs = [Path(d) for d in ([out_dir] if isinstance(out_dir, (str, Path)) else out_dir)]
         if len(dirs) != len(configs):
             raise ValueError(f"expected one run directory per seed ({len(configs)}), got {len(dirs)}")
-    run = Run(configs, dirs)  # builds everything (and checks strategy parameters) before touching disk
+    run = Run(configs, dirs, device)  # builds everything (and checks strategy parameters) before touching disk
     for directory in dirs:
         try:
             directory.mkdir(parents=True, exist_ok=True)
@@ -413,7 +423,7 @@ def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seed
             started = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
             for seed_run in run.seed_runs:
                 session = {"from_step": run.step, "to_step": config.steps, "started": started, "code": code,
-                           "strategy": seed_run.strategy_settings}
+                           "device": str(device), "strategy": seed_run.strategy_settings}
                 append_provenance(seed_run.dir, session, resume)
         with run.tracking(log, log_videos):
             run.train(progress=progress)

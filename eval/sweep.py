@@ -49,8 +49,8 @@ from pathlib import Path
 
 import lava_bridge_mj
 from lava_bridge_mj.eval.arguments import (apply_settings, check_writable, config_source, in_main_thread,
-                                           parse_seeds, positive_int, raise_keyboard_interrupt, read_config_file,
-                                           setting)
+                                           device, parse_seeds, positive_int, raise_keyboard_interrupt,
+                                           read_config_file, setting)
 from lava_bridge_mj.eval.config import METHODS, RunConfig
 from lava_bridge_mj.eval import sweep_ray
 from lava_bridge_mj.eval.run_files import lock_holder
@@ -189,6 +189,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--threads", type=positive_int, default=1,
                         help="torch threads per job, and CPUs a Ray task asks for (default: 1, which keeps "
                              "a seed's numbers independent of its batch)")
+    parser.add_argument("--device", type=device, default="cpu",
+                        help="torch device every job trains on: cpu (default) or cuda / cuda:N where this "
+                             "machine has one; as in training (local backend only: Ray tasks ask for CPUs alone)")
     parser.add_argument("--backend", choices=("local", "ray"), default="local",
                         help="local worker processes (default) or Ray tasks")
     parser.add_argument("--address", help="with --backend ray: the running cluster to use (ray.init's address); "
@@ -208,6 +211,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.address is not None and args.backend != "ray":
         parser.error("--address needs --backend ray")
+    if args.device != "cpu" and args.backend == "ray":
+        parser.error(f"--device {args.device}: Ray tasks ask for CPUs only; train on a GPU with --backend local")
     if args.backend == "ray":
         try:
             import ray
@@ -263,7 +268,7 @@ def _sweep(args: argparse.Namespace, argv, workers: int, configs: dict, rejected
                  "eval_episodes": args.eval_episodes, "config": str(args.config) if args.config else None,
                  "set": [f"{'.'.join(path)}={json.dumps(value)}" for path, value in args.settings or ()],
                  "out": str(out), "workers": workers, "seeds_per_job": args.seeds_per_job,
-                 "threads": args.threads, "backend": args.backend, "address": args.address}
+                 "threads": args.threads, "device": args.device, "backend": args.backend, "address": args.address}
     # a job of a sweep killed just before may still be writing its last checkpoint: what its runs
     # hold is known only once it has stopped
     still_busy = wait_for_writers([d for job in jobs for d in job.run_dirs(out)], LOCK_WAIT)
@@ -282,7 +287,7 @@ def _sweep(args: argparse.Namespace, argv, workers: int, configs: dict, rejected
         if job.finished(config, out):
             record.jobs[index].update(status="skipped", skipped=list(job.seeds))
             continue
-        todo.append((index, job.spec(config, out, args.threads)))
+        todo.append((index, job.spec(config, out, args.threads, args.device)))
     try:
         record.write(strict=True)
     except OSError as error:

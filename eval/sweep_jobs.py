@@ -63,11 +63,11 @@ class Job:
         return all(run_status(dataclasses.replace(config, seed=seed), directory) == "finished"
                    for seed, directory in zip(self.seeds, self.run_dirs(out)))
 
-    def spec(self, config: RunConfig, out: Path, threads: int) -> dict:
+    def spec(self, config: RunConfig, out: Path, threads: int, device: str = "cpu") -> dict:
         """What a worker process or a Ray task is given to run this job (JSON)."""
         return {"method": self.method, "demos": self.demos, "seeds": list(self.seeds), "env_id": self.env_id,
                 "config": config.to_dict(),
-                "out": str(out.resolve()), "threads": threads}
+                "out": str(out.resolve()), "threads": threads, "device": device}
 
     @classmethod
     def from_spec(cls, spec: dict) -> "Job":
@@ -85,7 +85,8 @@ def _foreign_error(config: RunConfig, directory: Path) -> str:
             "overwriting it: move it away or sweep into another --out")
 
 
-def run_job(job: Job, config_values: dict, out: str | Path, threads: int = 1, progress: str | None = None) -> dict:
+def run_job(job: Job, config_values: dict, out: str | Path, threads: int = 1, progress: str | None = None,
+            device: str = "cpu") -> dict:
     """Train the unfinished seeds of `job` into their run directories. Never raises: the result's
     "status" is done, skipped (every seed already finished), failed (with "error") or interrupted.
 
@@ -119,7 +120,7 @@ def run_job(job: Job, config_values: dict, out: str | Path, threads: int = 1, pr
             print(f"{job.group}: training seeds {format_seeds(seeds)}{resumed}", flush=True)
             try:
                 run = train(config, [Path(out) / job.group / f"seed{s}" for s in seeds], seeds=seeds,
-                            resume=True, progress=progress or False)
+                            resume=True, progress=progress or False, device=device)
             except RunInterrupted:
                 raise
             except Exception as error:  # noqa: BLE001 - one batch's failure must not stop the others
@@ -146,7 +147,8 @@ def run_job(job: Job, config_values: dict, out: str | Path, threads: int = 1, pr
 
 def run_spec(spec: dict) -> dict:
     """`run_job` of a `Job.spec`."""
-    return run_job(Job.from_spec(spec), spec["config"], spec["out"], spec["threads"], spec.get("progress"))
+    return run_job(Job.from_spec(spec), spec["config"], spec["out"], spec["threads"], spec.get("progress"),
+                   spec.get("device", "cpu"))
 
 
 def job_main(spec_json: str, result_file: str, sweep_pid: int | None = None) -> None:

@@ -183,6 +183,7 @@ def test_provenance_records_each_training_session_with_the_strategy_settings(tra
                                  "temperature_growth": GoalDistSS(np.zeros((1, 4)), goal=(0, 0)).temperature_growth,
                                  "max_temperature": 50.0, "schedule": "episodes", "budget": None}
     assert first["code"]["lava_bridge_mj"] and first["code"]["torch"] == torch.__version__
+    assert first["device"] == "cpu"  # a run option, recorded per session, not in config.json
 
     train(config, tmp_path, resume=True, progress=False)  # finished at its budget: trains nothing, records nothing
     assert len(json.loads((tmp_path / "provenance.json").read_text())) == 1

@@ -163,6 +163,8 @@ def test_a_local_sweep_writes_every_run_as_a_single_run_would(finished, config_f
     entry = record(out)["jobs"][0]
     assert entry["trained"] == [0, 1] and entry["error"] is None and entry["wall_time"] > 0
     assert record(out)["arguments"]["methods"] == ["sac", "bc"] and record(out)["status"] == "finished"
+    assert record(out)["arguments"]["device"] == "cpu"
+    assert json.loads((out / "sac-d500/seed0/provenance.json").read_text())[0]["device"] == "cpu"
 
 
 def test_running_a_finished_sweep_again_skips_every_run(finished, config_file, tmp_path):
