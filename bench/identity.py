@@ -26,7 +26,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from single_seed_speed import importable_tree  # bench/ is on sys.path when this script runs
+from single_seed_speed import commit_tree, importable_tree  # bench/ is on sys.path when this script runs
 
 ROOT = Path(__file__).resolve().parent.parent
 DEMOS_7500 = ("hysac", "iql")
@@ -127,12 +127,8 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="identity-") as scratch:
         work = args.keep or Path(scratch)
         work.mkdir(parents=True, exist_ok=args.keep is None)
-        ref_tree = Path(scratch) / "ref-tree"
-        ref_tree.mkdir()
-        archive = subprocess.run(["git", "-C", str(ROOT), "archive", ref], capture_output=True, check=True).stdout
-        subprocess.run(["tar", "-x", "-C", str(ref_tree)], input=archive, check=True)
         paths = {"working": importable_tree(ROOT, Path(scratch) / "path-working"),
-                 "ref": importable_tree(ref_tree, Path(scratch) / "path-ref")}
+                 "ref": commit_tree(ref, Path(scratch))}
         config = work / "tiny.json"
         config.write_text(json.dumps(TINY))
         methods = {name: tree_methods(path) for name, path in paths.items()}

@@ -31,7 +31,7 @@ import time
 from pathlib import Path
 
 from difficulty import code_version  # bench/ is on sys.path when this script runs
-from single_seed_speed import importable_tree
+from single_seed_speed import commit_tree, importable_tree
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGET = 2000.0
@@ -100,12 +100,10 @@ def main(argv: list[str] | None = None) -> int:
             job += ["--config", str(scratch / "quick.json")]
         trees = [("working tree", importable_tree(ROOT, scratch / "path-working"), cases)]
         if args.ref:
-            archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.ref], capture_output=True)
-            if archive.returncode != 0:
+            try:
+                trees.append((f"ref {args.ref}", commit_tree(args.ref, scratch), ["sweep"]))
+            except ValueError:
                 parser.error(f"--ref {args.ref!r} is not a commit of this repository")
-            (scratch / "ref-tree").mkdir()
-            subprocess.run(["tar", "-x", "-C", str(scratch / "ref-tree")], input=archive.stdout, check=True)
-            trees.append((f"ref {args.ref}", importable_tree(scratch / "ref-tree", scratch / "path-ref"), ["sweep"]))
         for name, path, tree_cases in trees:
             for case in tree_cases:
                 before = load()

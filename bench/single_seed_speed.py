@@ -40,6 +40,18 @@ with tempfile.TemporaryDirectory() as out:
 """
 
 
+def commit_tree(ref: str, scratch: Path) -> Path:
+    """A folder under `scratch` where `import lava_bridge_mj` finds commit `ref`'s code, extracted with
+    `git archive`; ValueError naming `ref` when it is not a commit of this repository."""
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", ref], capture_output=True)
+    if archive.returncode != 0:
+        raise ValueError(f"{ref!r} is not a commit of this repository ({archive.stderr.decode().strip()})")
+    tree = scratch / "ref-tree"
+    tree.mkdir()
+    subprocess.run(["tar", "-x", "-C", str(tree)], input=archive.stdout, check=True)
+    return importable_tree(tree, scratch / "path-ref")
+
+
 def importable_tree(source: Path, into: Path) -> Path:
     """A folder where `import lava_bridge_mj` finds `source`'s code laid out as setup.cfg installs it."""
     package = into / "lava_bridge_mj"

@@ -20,7 +20,7 @@ import tempfile
 from pathlib import Path
 
 from difficulty import code_version  # bench/ is on sys.path when this script runs
-from single_seed_speed import importable_tree
+from single_seed_speed import commit_tree, importable_tree
 
 ROOT = Path(__file__).resolve().parents[1]
 TIMED = """
@@ -61,20 +61,23 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=3, help="subprocesses per tree and K (default: 3)")
     parser.add_argument("--quick", action="store_true", help="K = 2, 16 units, 5 updates, one repeat")
     args = parser.parse_args(argv)
-    ks = [2] if args.quick else [int(k) for k in args.seeds.split(",")]
+    try:
+        ks = [2] if args.quick else [int(k) for k in args.seeds.split(",")]
+    except ValueError:
+        parser.error(f"--seeds must be comma-separated numbers of seeds, got {args.seeds!r}")
+    if min(ks) < 1 or args.updates < 1 or args.repeats < 1:
+        parser.error(f"--seeds, --updates and --repeats must be >= 1, got {args.seeds}, {args.updates}, {args.repeats}")
     updates, repeats, hidden = (5, 1, 16) if args.quick else (args.updates, args.repeats, 64)
     print(f"$ python bench/update_speed.py {' '.join(argv if argv is not None else sys.argv[1:])}")
     print(f"this tree: {code_version()}; ref: {args.ref}; {hidden}x{hidden}, batch 256, one thread, "
           f"{updates} updates x {repeats} repeats")
     with tempfile.TemporaryDirectory(prefix="update-speed-") as scratch:
         scratch = Path(scratch)
-        archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.ref], capture_output=True)
-        if archive.returncode != 0:
+        try:
+            trees = {"this tree": importable_tree(ROOT, scratch / "path-working"),
+                     "ref": commit_tree(args.ref, scratch)}
+        except ValueError:
             parser.error(f"--ref {args.ref!r} is not a commit of this repository")
-        (scratch / "ref-tree").mkdir()
-        subprocess.run(["tar", "-x", "-C", str(scratch / "ref-tree")], input=archive.stdout, check=True)
-        trees = {"this tree": importable_tree(ROOT, scratch / "path-working"),
-                 "ref": importable_tree(scratch / "ref-tree", scratch / "path-ref")}
         print(f"{'K':>3} {'this tree: ms':>14} {'ref: ms':>9} {'seed-updates/s':>15} {'ref / this tree':>16}  weights")
         for k in ks:
             times: dict[str, list[float]] = {name: [] for name in trees}
