@@ -41,7 +41,7 @@ import numpy as np
 import torch
 
 from lava_bridge_mj.eval.evaluate import EVAL_SEED, EVAL_STARTS, MAX_EVAL_ENVS, evaluate
-from lava_bridge_mj.eval.runner import Run, RunConfig, make_agent
+from lava_bridge_mj.eval.runner import RunConfig, make_agent, train
 from lava_bridge_mj.vector import LavaBridgeVectorEnv
 from difficulty import code_version  # bench/ is on sys.path when this script runs
 
@@ -100,15 +100,9 @@ def timed(function, *args):
 
 def behaviour_cloned(seeds: int, updates: int):
     """A BC agent of `seeds` seeds (64x64 actor) after `updates` updates, trained through the trainer."""
-    configs = [RunConfig(method="bc", seed=s, steps=updates, eval_every=updates, eval_episodes=1,
-                         bc={"hidden_sizes": [64, 64]}) for s in range(seeds)]
+    config = RunConfig(method="bc", steps=updates, eval_every=updates, eval_episodes=1, bc={"hidden_sizes": [64, 64]})
     with tempfile.TemporaryDirectory() as out:
-        dirs = [Path(out) / f"seed{s}" for s in range(seeds)]
-        for d in dirs:
-            d.mkdir()
-        run = Run(configs, dirs)
-        run.train(progress=False)
-    return run.agent
+        return train(config, [Path(out) / f"seed{s}" for s in range(seeds)], seeds=range(seeds), progress=False).agent
 
 
 def main(argv: list[str] | None = None) -> None:

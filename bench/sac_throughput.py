@@ -28,7 +28,7 @@ import torch
 
 import lava_bridge_mj
 from lava_bridge_mj.agents.sac import SACConfig
-from lava_bridge_mj.eval.runner import Run, RunConfig
+from lava_bridge_mj.eval.runner import RunConfig, train
 
 LEARNING_STARTS = 1000
 BATCH = 256
@@ -60,14 +60,9 @@ def ours(hidden: int, seeds: int, steps: int) -> float:
                     learning_starts=LEARNING_STARTS)
     warmup = LEARNING_STARTS + 200
     # one evaluation episode per start distribution, at the very end: a small, counted cost
-    configs = [RunConfig(method="sac", seed=s, steps=warmup, eval_every=10**9, eval_episodes=1, sac=sac)
-               for s in range(seeds)]
+    config = RunConfig(method="sac", steps=warmup, eval_every=10**9, eval_episodes=1, sac=sac)
     with tempfile.TemporaryDirectory() as out:
-        dirs = [Path(out) / f"seed{s}" for s in range(seeds)]
-        for d in dirs:
-            d.mkdir()
-        run = Run(configs, dirs)
-        run.train(progress=False)
+        run = train(config, [Path(out) / f"seed{s}" for s in range(seeds)], seeds=range(seeds), progress=False)
         run.config.steps = warmup + steps  # the configs share the stopping point through run.config
         start = time.perf_counter()
         run.train(progress=False)
