@@ -150,17 +150,25 @@ def test_free_motion_steps_equal_the_checked_loop_bit_for_bit(env_id):
     assert 0 < free < 900 * k and walls_only, (free, walls_only)  # the three paths ran
 
 
+STRONGEST_PUSHES = [np.array([dx, dy], dtype=np.float32) for dx in (-1, 0, 1) for dy in (-1, 0, 1) if dx or dy]
+"""Full force in each of eight directions."""
+
+
+def checked_loop_task(env_id):
+    """A task with its free-motion shortcut off (`skip_free_contacts = False`), and an MjData of it."""
+    task = LavaBridgeTask(TASKS[env_id])
+    task.skip_free_contacts = False
+    return task, mujoco.MjData(task.model)
+
+
 @pytest.mark.parametrize("env_id", ["LavaBridge-v0", "LavaBridgeLowDamping-v0", "LavaBridgeBend-v0"])
 def test_free_motion_is_only_claimed_where_no_contact_can_occur(env_id):
     """From random states (any position, speeds up to the top speed) that free_motion accepts, the
     strongest pushes in eight directions find no contact at any physics step of the checked loop."""
-    task = LavaBridgeTask(TASKS[env_id])
-    task.skip_free_contacts = False
-    data = mujoco.MjData(task.model)
+    task, data = checked_loop_task(env_id)
     rng = np.random.default_rng(1)
     hx, hy = task.layout.half_extent
     v = task.layout.top_speed
-    pushes = [np.array([dx, dy], dtype=np.float32) for dx in (-1, 0, 1) for dy in (-1, 0, 1) if dx or dy]
     accepted = refused = 0
     for _ in range(400):
         state = rng.uniform([-hx, -hy, -v, -v], [hx, hy, v, v])
@@ -169,7 +177,7 @@ def test_free_motion_is_only_claimed_where_no_contact_can_occur(env_id):
             refused += 1
             continue
         accepted += 1
-        push = pushes[rng.integers(len(pushes))]
+        push = STRONGEST_PUSHES[rng.integers(len(STRONGEST_PUSHES))]
         data.ctrl[:] = push
         for _ in range(task.frame_skip):
             mujoco.mj_step2(task.model, data)
@@ -184,13 +192,10 @@ def test_clear_of_hazards_is_only_claimed_where_no_lava_or_goal_contact_can_occu
     """From random states that clear_of_hazards accepts, many against a wall (ball centres up to the
     maze's edge, speeds up to the top speed), the strongest pushes find no lava or goal contact at any
     physics step of the checked loop; and the walls-only steps it allows do touch walls."""
-    task = LavaBridgeTask(TASKS[env_id])
-    task.skip_free_contacts = False
-    data = mujoco.MjData(task.model)
+    task, data = checked_loop_task(env_id)
     rng = np.random.default_rng(2)
     hx, hy = task.layout.half_extent
     v = task.layout.top_speed
-    pushes = [np.array([dx, dy], dtype=np.float32) for dx in (-1, 0, 1) for dy in (-1, 0, 1) if dx or dy]
     accepted = refused = wall_contacts = 0
     for i in range(600):
         state = rng.uniform([-hx, -hy, -v, -v], [hx, hy, v, v])
@@ -204,7 +209,7 @@ def test_clear_of_hazards_is_only_claimed_where_no_lava_or_goal_contact_can_occu
             refused += 1
             continue
         accepted += 1
-        data.ctrl[:] = pushes[rng.integers(len(pushes))]
+        data.ctrl[:] = STRONGEST_PUSHES[rng.integers(len(STRONGEST_PUSHES))]
         for _ in range(task.frame_skip):
             mujoco.mj_step2(task.model, data)
             mujoco.mj_step1(task.model, data)
