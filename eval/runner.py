@@ -417,6 +417,10 @@ def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seed
         if resume:
             run.resume()
         for seed_config, directory in zip(configs, dirs):
+            if run.step < config.steps:
+                # the final.pt of a smaller budget goes before config.json names the larger one: else an
+                # extension stopped short of its end would read as finished and a rerun would skip it
+                (directory / "final.pt").unlink(missing_ok=True)
             write_config(directory, seed_config.to_dict())
         if run.step < config.steps:  # a finished run resumed at its budget trains nothing: no session
             code = code_provenance()

@@ -20,7 +20,7 @@ from lava_bridge_mj.eval import cli
 from lava_bridge_mj.eval.provenance import git_state
 from lava_bridge_mj.agents.methods import METHODS as METHOD_SPECS
 from lava_bridge_mj.eval.config import METHODS, RunConfig
-from lava_bridge_mj.eval.run_files import EPISODE_FIELDS, METRIC_FIELDS, RunDirectoryError
+from lava_bridge_mj.eval.run_files import EPISODE_FIELDS, METRIC_FIELDS, RunDirectoryError, run_status
 from lava_bridge_mj.eval.runner import Run, train
 
 TINY_SAC = SACConfig(hidden_sizes=(16, 16), batch_size=32, buffer_size=500, learning_starts=100)
@@ -148,6 +148,29 @@ def resume_from_mid_episode_checkpoint(config, full_dir, full, resumed_dir):
     for name, tensor in full.agent.actor.state_dict().items():
         assert torch.equal(tensor, resumed.agent.actor.state_dict()[name]), name
     return resumed
+
+
+def test_an_extension_stopped_short_of_its_budget_is_not_finished(finished_run, tmp_path, monkeypatch):
+    # extending 300 -> 500 steps and stopping at 400: the old budget's final.pt must not make the run
+    # read as finished at 500, or a rerun of the sweep would skip it for good
+    out = copy_run(finished_run, tmp_path / "run")
+    save = Run.save
+
+    def save_then_die(self, name="checkpoint.pt"):
+        save(self, name)
+        if self.step == 400:
+            raise RuntimeError("killed at step 400")
+
+    monkeypatch.setattr(Run, "save", save_then_die)
+    longer = tiny_config(steps=500)
+    with pytest.raises(RuntimeError, match="killed at step 400"):
+        train(longer, out, resume=True, progress=False)
+    monkeypatch.undo()
+    assert not (out / "final.pt").exists()
+    assert run_status(longer, out) == "todo"
+    train(longer, out, resume=True, progress=False)
+    assert run_status(longer, out) == "finished"
+    assert torch.load(out / "final.pt", weights_only=False)["step"] == 500
 
 
 def test_resume_refuses_a_checkpoint_of_another_configuration(finished_run, tmp_path):
