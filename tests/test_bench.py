@@ -18,6 +18,7 @@ BENCH = Path(__file__).resolve().parent.parent / "bench"
     (["threads_under_load.py", "--seconds", "6"], "PASSIVE (CLI default)"),
     (["protocol_throughput.py", "--quick", "--cases", "sweep"], "sweep (working tree)"),
     (["update_speed.py", "--quick"], "ref / this tree"),
+    (["update_speed.py", "--quick", "--compiled"], "ref: this tree, torch.compile"),
 ])  # difficulty.py runs and prints its figures in test_difficulty_writes_a_table_row_per_task_with_its_command
 def test_bench_script_runs_and_prints_figures(argv, expected):
     result = subprocess.run([sys.executable, str(BENCH / argv[0]), *argv[1:]], capture_output=True, text=True,
