@@ -6,7 +6,7 @@
     lava-bridge-bench --method auxss --config my.json     # any RunConfig field, e.g. SAC sizes
     lava-bridge-bench --method auxss --set sac.lr=1e-3 --set strategy.sigma=0.2   # one field at a time
     lava-bridge-bench sweep --methods auxss,sac --seeds 0-24 --demos 500,7500 --out runs/study
-    lava-bridge-bench report ... / video ... / summary ... # the commands: COMMANDS below
+    lava-bridge-bench report ... / video ... / summary ... / export ...  # the commands: COMMANDS below
 
 `train` is the command when none is named: `lava-bridge-bench --method auxss` is
 `lava-bridge-bench train --method auxss`.
@@ -37,13 +37,14 @@ DEFAULTS = RunConfig()
 TASK_IDS = tuple(lava_bridge_mj.TASKS)
 COMMANDS = {"train": "lava_bridge_mj.eval.cli", "sweep": "lava_bridge_mj.eval.sweep",
             "report": "lava_bridge_mj.eval.report", "video": "lava_bridge_mj.eval.video",
-            "summary": "lava_bridge_mj.eval.summary"}
+            "summary": "lava_bridge_mj.eval.summary", "export": "lava_bridge_mj.eval.export"}
 """`lava-bridge-bench NAME ...` runs the module's main(rest of argv); without a name, `train`."""
 COMMAND_HELP = {"train": "train one method, one seed or a batch of seeds (the default command)",
                 "sweep": "every method x demo set x seed, as batched jobs on local worker processes or Ray",
                 "report": "figures, tables and tests from a directory of runs",
                 "video": "an mp4 of a run's policy from p0 and ood",
-                "summary": "a markdown table of a directory of runs, with the start-room share of training"}
+                "summary": "a markdown table of a directory of runs, with the start-room share of training",
+                "export": "compact copies of finished runs (no checkpoints or policies), to commit to results/"}
 
 
 def build_parser(prog: str = "lava-bridge-bench") -> argparse.ArgumentParser:

@@ -13,9 +13,10 @@ def config_of(argv):
     return cli._config_from(parser.parse_args(argv), parser)
 
 
-@pytest.mark.parametrize("typo, hint", [("reprot", "did you mean 'report'?"), ("vidoe", "did you mean 'video'?"),
-                                        ("sweeep", "did you mean 'sweep'?"), ("trian", "did you mean 'train'?"),
-                                        ("evaluate", "(commands: train, sweep, report, video, summary")])
+@pytest.mark.parametrize("typo, hint", [("reprot", "did you mean 'report' or 'export'?"),
+                                        ("vidoe", "did you mean 'video'?"), ("sweeep", "did you mean 'sweep'?"),
+                                        ("trian", "did you mean 'train'?"), ("exprot", "did you mean 'export'"),
+                                        ("evaluate", "(commands: train, sweep, report, video, summary, export")])
 def test_a_mistyped_command_names_the_nearest_and_writes_nothing(typo, hint, tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     assert cli.main([typo, "runs/x"]) == 2

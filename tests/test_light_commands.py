@@ -19,7 +19,8 @@ print("TORCH" if "torch" in sys.modules else "NO TORCH")
 
 
 @pytest.mark.parametrize("argv", [["--help"], ["sweep", "--help"], ["report", "--help"], ["video", "--help"],
-                                  ["report", "no-such-directory", "--out", "unused"]])
+                                  ["report", "no-such-directory", "--out", "unused"], ["export", "--help"],
+                                  ["export", "no-such-directory", "unused"]])
 def test_help_and_report_do_not_import_torch(argv):
     result = subprocess.run([sys.executable, "-c", PROBE, *argv], capture_output=True, text=True, timeout=120)
     assert result.stdout.strip().splitlines()[-1] == "NO TORCH", result.stdout + result.stderr

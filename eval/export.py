@@ -1,0 +1,128 @@
+"""`lava-bridge-bench export RUNS RESULTS`: compact copies of finished runs, for committing to results/.
+
+A compact copy holds what `report`, `summary` and the findings read (config.json, provenance.json,
+metrics.csv, episodes.csv, start_weights.npz) and none of the checkpoints, policies or videos: a few
+hundred kB per run instead of several MB. Every run directory under RUNS, at any depth, lands at the
+same relative path under RESULTS, so `runs/study/TASK/METHOD-d500/seed7` becomes
+`RESULTS/TASK/METHOD-d500/seed7`.
+
+Only finished runs are exported (final.pt written and the last evaluation at config.json's `steps`):
+a run still training or stopped part-way would put half a learning curve beside whole ones. The others
+are listed with how far they got; `--unfinished` exports them too (a seed that diverged and stopped
+is a result). A copy replaces an earlier copy of the same run at a smaller budget (the run was
+extended since); a target holding another configuration, or the same run at a larger budget, is
+refused and nothing of that run is written. Each file is replaced atomically and config.json last,
+so an export killed part-way leaves whole files that a rerun completes.
+
+    lava-bridge-bench export runs/study results/study
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from lava_bridge_mj.eval.atomic import atomic_write
+from lava_bridge_mj.eval.config import RunConfig
+from lava_bridge_mj.eval.run_files import DamagedFileError, read_config
+from lava_bridge_mj.eval.summary import read_metrics
+
+COMPACT_FILES = ("provenance.json", "metrics.csv", "episodes.csv", "start_weights.npz", "config.json")
+"""The files a compact copy holds, in the order they are written: config.json last."""
+
+
+@dataclass
+class Export:
+    """What an export did: run directories (relative to RUNS) per outcome, with the reason for the last two."""
+
+    exported: list[str]
+    unchanged: list[str]
+    unfinished: list[str]
+    refused: list[str]
+
+
+def progress(source: Path, config: dict) -> tuple[bool, float]:
+    """(finished, the step of the last evaluation) of the run in `source`."""
+    rows = read_metrics(source)
+    last = rows[-1]["step"] if rows else 0.0
+    return (source / "final.pt").is_file() and last == config.get("steps"), last
+
+
+def refusal(target: Path, config: dict) -> str | None:
+    """Why the copy in `target` must not be replaced by a copy of the run `config`; None if it may."""
+    try:
+        existing = read_config(target)
+    except DamagedFileError as error:
+        return f"{error}; move it aside"
+    if existing is None:
+        return None
+    if not RunConfig.from_dict(config, source=str(target)).continues(existing):
+        return f"{target} holds a run of another configuration"
+    if existing.get("steps", 0) > config["steps"]:
+        return f"{target} holds this run at a larger budget ({existing['steps']:,} steps, here {config['steps']:,})"
+    return None
+
+
+def export(runs: Path, results: Path, unfinished: bool = False) -> Export:
+    """Copy the compact files of every run under `runs` to the same place under `results` (module doc)."""
+    done = Export([], [], [], [])
+    for config_file in sorted(runs.rglob("config.json")):
+        source = config_file.parent
+        if not (source / "metrics.csv").is_file():
+            continue
+        name = str(source.relative_to(runs))
+        config = read_config(source)
+        finished, last = progress(source, config)
+        if not finished:
+            done.unfinished.append(f"{name} (last evaluation at step {last:,.0f} of {config.get('steps', 0):,})")
+            if not unfinished:
+                continue
+        target = results / source.relative_to(runs)
+        why = refusal(target, config)
+        if why is not None:
+            done.refused.append(f"{name}: {why}")
+            continue
+        changed = [f for f in COMPACT_FILES if (source / f).is_file()
+                   and not ((target / f).is_file() and (target / f).read_bytes() == (source / f).read_bytes())]
+        if not changed:
+            done.unchanged.append(name)
+            continue
+        target.mkdir(parents=True, exist_ok=True)
+        for file in changed:
+            data = (source / file).read_bytes()
+            atomic_write(target / file, lambda f, data=data: f.write(data))
+        done.exported.append(name)
+    return done
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="lava-bridge-bench export", description=__doc__.splitlines()[0],
+                                     epilog="exits 1 when a run was refused, 2 on bad arguments")
+    parser.add_argument("runs", type=Path, help="a directory of run directories (any depth), e.g. runs/study")
+    parser.add_argument("results", type=Path, help="where the compact copies go, e.g. results/study")
+    parser.add_argument("--unfinished", action="store_true",
+                        help="also export runs that have not finished (diverged or stopped seeds)")
+    args = parser.parse_args(argv)
+    if not args.runs.is_dir():
+        parser.error(f"RUNS {str(args.runs)!r} is not a directory")
+    runs, results = args.runs.resolve(), args.results.resolve()
+    if results == runs or results.is_relative_to(runs):
+        parser.error(f"RESULTS {str(args.results)!r} lies inside RUNS {str(args.runs)!r}: the copies would be "
+                     "exported again; choose a directory outside it")
+    try:
+        done = export(args.runs, args.results, args.unfinished)
+    except (ValueError, OSError) as error:  # an unreadable config.json or metrics.csv names its file
+        print(f"{parser.prog}: error: {error}", file=sys.stderr)
+        return 2
+    print(f"exported {len(done.exported)} run(s) to {args.results}, {len(done.unchanged)} unchanged")
+    for title, lines in (("not finished" + ("" if args.unfinished else ", not exported"), done.unfinished),
+                         ("refused, nothing written", done.refused)):
+        if lines:
+            print(f"{title}:", *(f"  {line}" for line in lines), sep="\n")
+    return 1 if done.refused else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
