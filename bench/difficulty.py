@@ -9,13 +9,20 @@ Per task (`--env ID`, or every task of `lava_bridge_mj.TASKS` by default):
   `--candidate-seeds` draws (the runner's draw and Omega-SS's own defaults: 32 rollouts of 4 steps,
   seeded with the run's seed, omega floored at 0.05): near 1, Omega-SS is uniform sampling.
 
+The last column, SAC from p0 at 100,000 steps on tuning seeds, comes from training runs, not from
+this script: `--sac-runs DIR` (TASK/.../seedN run directories, `results/suite/sac_p0`) appends their
+table, each seed's best success from p0 / ood over its evaluations and the share of its training
+episodes that reached the goal; `--sac-runs DIR --sac-only` prints just that table, in seconds
+(tests/test_results_docs.py checks results/suite/difficulty.md against it).
+
 Usage: python bench/difficulty.py [--env ID] [--random-episodes 1000] [--expert-episodes 200]
-       [--rollouts 64] [--candidate-seeds 0-4] [--out results/suite/difficulty.md]
+       [--rollouts 64] [--candidate-seeds 0-4] [--sac-runs DIR [--sac-only]] [--out results/suite/difficulty.md]
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import shlex
 import subprocess
 import sys
@@ -153,6 +160,43 @@ def parse_seeds(text: str) -> list[int]:
     return sorted(seeds)
 
 
+def sac_from_p0(root: Path) -> str:
+    """The SAC-from-p0 section of the difficulty table, from the runs under root/TASK/ (any depth)."""
+    rows, seeds, missing, counts = [], set(), [], set()
+    for env_id in lava_bridge_mj.TASKS:
+        runs = {int(path.parent.name.removeprefix("seed")): path.parent
+                for path in sorted((root / env_id).rglob("metrics.csv"))}
+        if not runs:
+            missing.append(f"`{env_id}`")
+            continue
+        cells, reached, episodes = {}, 0, 0
+        for seed, run in runs.items():
+            with open(run / "metrics.csv") as f:
+                evaluations = list(csv.DictReader(f))
+            counts.add(len(evaluations))
+            cells[seed] = " / ".join(f"{max(float(r[f'success_{start}']) for r in evaluations):.2f}"
+                                     for start in ("p0", "ood"))
+            with open(run / "episodes.csv") as f:
+                outcomes = [int(r["success"]) for r in csv.DictReader(f)]
+            reached, episodes = reached + sum(outcomes), episodes + len(outcomes)
+        seeds.update(runs)
+        rows.append((env_id, cells, "none" if not reached else f"{reached:,} of {episodes:,} ({reached / episodes:.1%})"))
+    order = sorted(seeds)
+    lines = ["## SAC from p0 (tuning seeds " + format_seeds(order) + ", 100,000 steps, evaluation every 10,000 "
+             "with 50 episodes per start distribution)", "",
+             f"Runs in `{root.as_posix()}/` (command and commits in `results/README.md`); this section is "
+             f"`python bench/difficulty.py --sac-runs {root.as_posix()} --sac-only`. Best success from p0 / ood "
+             f"over all {' or '.join(map(str, sorted(counts)))} evaluations, and the share of training episodes that "
+             "reached the goal:", "",
+             "| task | " + " | ".join(f"seed {s}" for s in order) + " | training episodes reaching the goal |",
+             "|---|" + "---|" * len(order) + "---|"]
+    lines += [f"| `{env_id}` | " + " | ".join(cells.get(s, "-") for s in order) + f" | {share} |"
+              for env_id, cells, share in rows]
+    if missing:
+        lines += ["", f"No runs here for {', '.join(missing)}."]
+    return "\n".join(lines) + "\n"
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--env", action="append", metavar="ID",
@@ -163,8 +207,18 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--demos", type=int, default=500, choices=(500, 7500))
     parser.add_argument("--candidate-seeds", type=parse_seeds, default="0-4", metavar="SEEDS",
                         help="run seeds whose candidate states give Omega-SS's sampling ratio (default 0-4)")
+    parser.add_argument("--sac-runs", type=Path, metavar="DIR",
+                        help="append the SAC-from-p0 table of the runs under DIR/TASK/ (results/suite/sac_p0)")
+    parser.add_argument("--sac-only", action="store_true", help="with --sac-runs: print only that table")
     parser.add_argument("--out", type=Path, help="also write the table, with the command and commit, to this file")
     args = parser.parse_args(argv)
+    if args.sac_runs is not None and not args.sac_runs.is_dir():
+        parser.error(f"--sac-runs {str(args.sac_runs)!r} is not a directory")
+    if args.sac_only:
+        if args.sac_runs is None or args.out:
+            parser.error("--sac-only needs --sac-runs and prints the table; it writes no --out")
+        print(sac_from_p0(args.sac_runs), end="")
+        return
     env_ids = args.env or list(lava_bridge_mj.TASKS)
     for env_id in env_ids:
         if env_id not in lava_bridge_mj.TASKS:
@@ -190,7 +244,8 @@ def main(argv: list[str] | None = None) -> None:
                   f"state, the {CANDIDATES} candidates of each seed's run.\n\n")
         args.out.parent.mkdir(parents=True, exist_ok=True)
         tmp = args.out.with_name(args.out.name + ".tmp")
-        tmp.write_text(header + text + "\n")
+        sac = "" if args.sac_runs is None else "\n" + sac_from_p0(args.sac_runs)
+        tmp.write_text(header + text + "\n" + sac)
         tmp.replace(args.out)
         print(f"wrote {args.out}")
 

@@ -47,6 +47,8 @@ def test_difficulty_writes_a_table_row_per_task_with_its_command(tmp_path):
     (["--env", "LavaBridge-v9"], "--env 'LavaBridge-v9' is not a task; expected one of LavaBridge-v0"),
     (["--rollouts", "0"], "--rollouts must be at least 1"),
     (["--candidate-seeds", "4-2"], "--candidate-seeds"),
+    (["--sac-runs", "no-such-directory"], "--sac-runs 'no-such-directory' is not a directory"),
+    (["--sac-only"], "--sac-only needs --sac-runs"),
 ])
 def test_difficulty_refuses_bad_options_and_writes_nothing(tmp_path, argv, message):
     out = tmp_path / "difficulty.md"

@@ -2,6 +2,7 @@
 `make report` makes from the committed metrics in results/: a changed metric, a changed aggregate or
 a hand-edited table fails here. The commands are read from the Makefile, the one place they live."""
 
+import importlib.util
 import re
 import shlex
 from pathlib import Path
@@ -41,3 +42,13 @@ def test_committed_report_is_regenerated_exactly_from_results(argv, tmp_path, mo
     assert report.main(argv) == 0
     assert (tmp_path / "report.md").read_text() == committed.read_text(), \
         f"{committed} is stale: run `make report` and commit what it writes"
+
+
+def test_the_difficulty_tables_sac_section_is_what_the_committed_sac_runs_give(monkeypatch):
+    # bench/difficulty.py's full run takes a quarter of an hour; its SAC section only reads runs
+    spec = importlib.util.spec_from_file_location("difficulty", ROOT / "bench" / "difficulty.py")
+    difficulty = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(difficulty)
+    committed = (ROOT / "results/suite/difficulty.md").read_text()
+    monkeypatch.chdir(ROOT)  # the section names its directory as given, relative to the repository
+    assert committed[committed.index("## SAC from p0"):] == difficulty.sac_from_p0(Path("results/suite/sac_p0"))
