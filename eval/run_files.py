@@ -182,6 +182,24 @@ def read_provenance(directory: Path) -> list[dict[str, Any]]:
     return sessions
 
 
+def check_strategy_unchanged(directory: Path, settings: dict[str, Any] | None) -> None:
+    """Refuse (RunDirectoryError) to continue a run whose start strategy would change part-way: each
+    setting its last session recorded against the value the code gives it now (defaults filled in).
+    A default changed between commits would otherwise switch a resumed run to another strategy without
+    a word. A setting the record lacks is one added since, whose default keeps the old behaviour
+    (GoalDist-SS's `schedule`, "episodes": the only schedule before it existed)."""
+    recorded = next((s["strategy"] for s in reversed(read_provenance(directory)) if s.get("strategy")), None)
+    now = json.loads(json.dumps(settings or {}))  # as provenance.json holds them: tuples become lists
+    keys = sorted(k for k in recorded or {} if now.get(k) != recorded[k])
+    if not keys:
+        return
+    was = ", ".join(f"{k}={recorded[k]!r}" for k in keys)
+    changed = ", ".join(f"{k}={now.get(k)!r}" for k in keys)
+    raise RunDirectoryError(f"{directory} trained with start strategy settings {was} (provenance.json); this code "
+                            f"would continue it with {changed}, a default changed since. Resume it with its "
+                            "settings (--set strategy.KEY=VALUE, or its config's strategy section), or train it anew")
+
+
 def append_provenance(directory: Path, session: dict[str, Any], resume: bool) -> None:
     """Record a training session in provenance.json (after the earlier ones when resuming)."""
     sessions = read_provenance(directory) if resume else []

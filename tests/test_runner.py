@@ -196,6 +196,27 @@ def test_a_finished_run_extended_to_more_steps_equals_one_trained_to_them(traine
     assert torch.load(tmp_path / "extended/final.pt", weights_only=False)["step"] == 500
 
 
+def test_a_resume_refuses_to_change_the_start_strategy_a_run_began_with(trained, tmp_path):
+    # as if the code's default temperature growth had changed since the run's first session
+    config = tiny_config("goaldist_ss", steps=300)
+    out = copy_run(trained(config)[0], tmp_path / "run")
+    sessions = json.loads((out / "provenance.json").read_text())
+    sessions[0]["strategy"]["temperature_growth"] = 1.01
+    (out / "provenance.json").write_text(json.dumps(sessions))
+    before = {name: (out / name).read_bytes() for name in ("config.json", "provenance.json", "metrics.csv")}
+    growth = GoalDistSS(np.zeros((1, 4)), goal=(0, 0)).temperature_growth
+    with pytest.raises(RunDirectoryError, match=rf"temperature_growth=1.01 .*continue it with temperature_growth={growth}"):
+        train(dataclasses.replace(config, steps=400), out, resume=True, progress=False)
+    assert {name: (out / name).read_bytes() for name in before} == before
+
+    # a setting the record lacks was added since, its default the old behaviour: the run continues
+    del sessions[0]["strategy"]["schedule"]
+    sessions[0]["strategy"]["temperature_growth"] = growth
+    (out / "provenance.json").write_text(json.dumps(sessions))
+    train(dataclasses.replace(config, steps=400), out, resume=True, progress=False)
+    assert json.loads((out / "config.json").read_text())["steps"] == 400
+
+
 def test_provenance_records_each_training_session_with_the_strategy_settings(trained, tmp_path):
     config = tiny_config("goaldist_ss", steps=300)
     tmp_path = copy_run(trained(config)[0], tmp_path / "run")
