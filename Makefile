@@ -8,7 +8,7 @@ STAMP := $(VENV)/.installed
 MESA_PACKAGES := libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 libosmesa6
 export MUJOCO_GL ?= egl
 
-.PHONY: run expert-video task-pictures test bench report setup gl clean
+.PHONY: run expert-video task-pictures test bench study report setup gl clean
 
 # The main job: what the package is for, AuxSS against SAC from p0 on the same 5 seeds (80,000 steps, as
 # one sweep of two 5-seed jobs, one per core; 17 min on the idle 2-core machine, set-up included), then the report
@@ -39,6 +39,20 @@ test: setup
 
 bench: setup
 	$(BIN)/python bench/env_throughput.py
+
+# The start-distribution study: SAC, the five demo start distributions and HySAC+AuxSS on every task of
+# lava_bridge_mj.SUITE, evaluation seeds 0-19 (the tuning seeds, 100 and up, never), as one-thread jobs of
+# 10 seeds, two at a time; the two crossings at the paper's 300,000 steps, where 100,000 solve nothing.
+# About 23 hours on the 2-core machine at its measured 849 seed-steps/s: stop it at any moment and run it
+# again to continue. Finished runs are then copied to results/study (lava-bridge-bench export).
+STUDY_METHODS := auxss,uniform_ss,omega_ss,goaldist_ss,reverse_ss,sac,hysac_auxss
+STUDY_SEEDS := 0-19
+STUDY_SWEEP := $(BIN)/lava-bridge-bench sweep --methods $(STUDY_METHODS) --seeds $(STUDY_SEEDS) --eval-every 10000 \
+    --seeds-per-job 10 --workers 2 --threads 1 --out runs/study
+study: setup
+	$(STUDY_SWEEP) --envs LavaBridgeTwoCrossings-v0 --steps 300000
+	$(STUDY_SWEEP) --envs LavaBridge-v0,LavaBridgeNarrow-v0 --steps 100000
+	$(BIN)/lava-bridge-bench export runs/study results/study
 
 # docs/results.md's tables and figures, regenerated from the committed metrics in results/ (no training):
 # every method at the 100k protocol budget, AuxSS, SAC and Omega-SS at the paper's 300k, the AuxSS ablations,

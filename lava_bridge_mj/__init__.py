@@ -23,7 +23,7 @@ from lava_bridge_mj.layout import Disc, Layout  # noqa: E402
 from lava_bridge_mj.lava_bridge import MAX_EPISODE_STEPS, LavaBridgeEnv  # noqa: E402
 from lava_bridge_mj.starts import START_NAMES, start_distribution  # noqa: E402
 from lava_bridge_mj.task_physics import LavaBridgeTask  # noqa: E402
-from lava_bridge_mj.tasks import DEFAULT_ENV_ID, TASK_DOCS, TASKS, task_layout  # noqa: E402
+from lava_bridge_mj.tasks import DEFAULT_ENV_ID, SUITE, TASK_DOCS, TASKS, task_layout  # noqa: E402
 from lava_bridge_mj.vector import LavaBridgeVectorEnv  # noqa: E402
 
 ENV_ID = DEFAULT_ENV_ID
@@ -47,7 +47,7 @@ def register_envs() -> None:
 
 register_envs()
 
-__all__ = ["ENV_ID", "MAX_EPISODE_STEPS", "TASKS", "TASK_DOCS", "Disc", "Layout", "LavaBridgeEnv", "LavaBridgeTask",
+__all__ = ["ENV_ID", "MAX_EPISODE_STEPS", "SUITE", "TASKS", "TASK_DOCS", "Disc", "Layout", "LavaBridgeEnv", "LavaBridgeTask",
            "LavaBridgeVectorEnv", "RunConfig", "START_NAMES", "ScriptedExpert", "load_demos", "register_envs",
            "start_distribution", "task_layout", "train"]
 

@@ -7,7 +7,7 @@ LavaBridge-v0: p0 blobs 1 m from the start room's west wall, two ood spots 0.7 m
 beside the bridge's mouth and two in far parts of the start room, the goal 3 m past the bridge.
 
 `TASKS` maps each gymnasium id to its layout (LavaBridge-v0 first); `TASK_DOCS` says in a sentence
-what makes each one hard; `task_layout(env_id)` looks one up.
+what makes each one hard; `SUITE` names the ones the study runs on; `task_layout(env_id)` looks one up.
 """
 
 from __future__ import annotations
@@ -73,6 +73,12 @@ TASK_DOCS: dict[str, str] = {
                           "and ends in lava 0.5 m short of the goal room: the direct way from p0 is a dead end.",
 }
 """What makes each task hard, in a sentence."""
+
+SUITE: tuple[str, ...] = ("LavaBridge-v0", "LavaBridgeNarrow-v0", "LavaBridgeTwoCrossings-v0")
+"""The tasks the start-distribution study runs on, easy to hard: the reference; the narrow bridge, the
+one maze where Omega-SS's weights are not near uniform; the two crossings, the one task whose
+screening spread two start distributions apart (at 300,000 steps). docs/design.md, section 7, gives
+the measurements behind each variant kept or left out; the others stay registered."""
 
 
 def task_layout(env_id: str) -> Layout:
