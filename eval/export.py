@@ -50,15 +50,16 @@ def progress(source: Path, config: dict) -> tuple[bool, float]:
     return (source / "final.pt").is_file() and last == config.get("steps"), last
 
 
-def refusal(target: Path, config: dict) -> str | None:
-    """Why the copy in `target` must not be replaced by a copy of the run `config`; None if it may."""
+def refusal(target: Path, config: dict, source: Path) -> str | None:
+    """Why the copy in `target` must not be replaced by a copy of the run in `source` (its `config`);
+    None if it may."""
     try:
         existing = read_config(target)
     except DamagedFileError as error:
         return f"{error}; move it aside"
     if existing is None:
         return None
-    if not RunConfig.from_dict(config, source=str(target)).continues(existing):
+    if not RunConfig.from_dict(config, source=str(source / "config.json")).continues(existing):
         return f"{target} holds a run of another configuration"
     if existing.get("steps", 0) > config["steps"]:
         return f"{target} holds this run at a larger budget ({existing['steps']:,} steps, here {config['steps']:,})"
@@ -80,7 +81,7 @@ def export(runs: Path, results: Path, unfinished: bool = False) -> Export:
             if not unfinished:
                 continue
         target = results / source.relative_to(runs)
-        why = refusal(target, config)
+        why = refusal(target, config, source)
         if why is not None:
             done.refused.append(f"{name}: {why}")
             continue

@@ -184,7 +184,7 @@ def read_provenance(directory: Path) -> list[dict[str, Any]]:
 
 def check_strategy_unchanged(directory: Path, settings: dict[str, Any] | None) -> None:
     """Refuse (RunDirectoryError) to continue a run whose start strategy would change part-way: each
-    setting its last session recorded against the value the code gives it now (defaults filled in).
+    setting its latest training session recorded against the value the code gives it now (defaults filled in).
     A default changed between commits would otherwise switch a resumed run to another strategy without
     a word. A setting the record lacks is one added since, whose default keeps the old behaviour
     (GoalDist-SS's `schedule`, "episodes": the only schedule before it existed)."""
