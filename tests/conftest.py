@@ -13,10 +13,19 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 
 import contextlib  # noqa: E402
 import csv  # noqa: E402
+import re  # noqa: E402
 import shutil  # noqa: E402
 import subprocess  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 import pytest  # noqa: E402
+
+
+def makefile_recipe(target):
+    """The command lines of the Makefile's `target`, continuation lines joined: the Makefile is the
+    one place the project's commands live, and tests read them from there."""
+    makefile = (Path(__file__).resolve().parent.parent / "Makefile").read_text().replace("\\\n", " ")
+    return re.search(rf"^{target}:.*\n((?:\t.*\n)+)", makefile, re.MULTILINE).group(1).splitlines()
 
 
 @pytest.fixture(scope="session", autouse=True)

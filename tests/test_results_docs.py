@@ -3,11 +3,11 @@
 a hand-edited table fails here. The commands are read from the Makefile, the one place they live."""
 
 import importlib.util
-import re
 import shlex
 from pathlib import Path
 
 import pytest
+from conftest import makefile_recipe
 
 pytest.importorskip("rliable", reason="the report needs the plots extra: pip install -e '.[plots]'")
 
@@ -18,9 +18,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def make_report_commands():
     """The argument lists of the `lava-bridge-bench report` lines of the Makefile's report target."""
-    makefile = (ROOT / "Makefile").read_text().replace("\\\n", " ")
-    recipe = re.search(r"^report:.*\n((?:\t.*\n)+)", makefile, re.MULTILINE).group(1)
-    return [shlex.split(line.split("lava-bridge-bench report", 1)[1]) for line in recipe.splitlines()
+    return [shlex.split(line.split("lava-bridge-bench report", 1)[1]) for line in makefile_recipe("report")
             if "lava-bridge-bench report" in line]
 
 

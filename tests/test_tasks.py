@@ -8,10 +8,8 @@ tests/test_vector_env.py; this file holds what is specific to the suite.
 from __future__ import annotations
 
 import json
-import re
 import types
 from importlib import resources
-from pathlib import Path
 
 import gymnasium
 import imageio.v2 as imageio
@@ -26,6 +24,7 @@ from lava_bridge_mj.demos import MANIFEST, SHIPPED_SEEDS, SHIPPED_SIZES, content
 from lava_bridge_mj.layout import Box2D, _uncovered
 from lava_bridge_mj.mjcf import VIEW_ASPECT
 from lava_bridge_mj.tasks import TASK_DOCS, placed_layout
+from conftest import makefile_recipe
 from test_env import needs_gl
 
 TASK_IDS = list(TASKS)
@@ -44,9 +43,7 @@ def test_suite_starts_with_the_unchanged_reference_task():
 
 def test_the_study_runs_on_every_task_of_the_suite_and_on_no_other():
     # the Makefile's study target is the one place its commands live; SUITE names its tasks for Python
-    makefile = (Path(__file__).resolve().parent.parent / "Makefile").read_text().replace("\\\n", " ")
-    recipe = re.search(r"^study:.*\n((?:\t.*\n)+)", makefile, re.MULTILINE).group(1)
-    envs = [env for line in recipe.splitlines() if "--envs" in line
+    envs = [env for line in makefile_recipe("study") if "--envs" in line
             for env in line.split("--envs ", 1)[1].split()[0].split(",")]
     assert sorted(envs) == sorted(lava_bridge_mj.SUITE) and len(envs) == len(set(envs))
     assert lava_bridge_mj.SUITE[0] == "LavaBridge-v0" and set(lava_bridge_mj.SUITE) <= set(TASKS)
