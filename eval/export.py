@@ -85,14 +85,14 @@ def export(runs: Path, results: Path, unfinished: bool = False) -> Export:
         if why is not None:
             done.refused.append(f"{name}: {why}")
             continue
-        changed = [f for f in COMPACT_FILES if (source / f).is_file()
-                   and not ((target / f).is_file() and (target / f).read_bytes() == (source / f).read_bytes())]
+        contents = {f: (source / f).read_bytes() for f in COMPACT_FILES if (source / f).is_file()}
+        changed = {f: data for f, data in contents.items()
+                   if not ((target / f).is_file() and (target / f).read_bytes() == data)}
         if not changed:
             done.unchanged.append(name)
             continue
         target.mkdir(parents=True, exist_ok=True)
-        for file in changed:
-            data = (source / file).read_bytes()
+        for file, data in changed.items():  # in COMPACT_FILES order: config.json last
             atomic_write(target / file, lambda f, data=data: f.write(data))
         done.exported.append(name)
     return done
