@@ -54,7 +54,7 @@ from lava_bridge_mj.eval.arguments import raise_keyboard_interrupt as _interrupt
 from lava_bridge_mj.eval.report_figures import curves_figure, maze_figure, maze_layout, save_figure
 from lava_bridge_mj.eval.report_groups import START_STUDY, benchmark_groups, demo_size_groups, weights_run
 from lava_bridge_mj.eval.report_tables import (findings_section, last_evaluation_table, late_table, pairwise_section,
-                                               reach_table, runs_table, threshold_table)
+                                               reach_table, runs_table, study_section, threshold_table)
 from lava_bridge_mj.eval.summary import read_start_weights
 from lava_bridge_mj.tasks import DEFAULT_ENV_ID
 from lava_bridge_mj.eval.sweep import seed_list
@@ -242,6 +242,9 @@ def _task_sections(groups: list[Group], curves: dict, threshold: float, reps: in
     lines.extend(["", f"{heading} Pairwise tests", "", *pairwise_section(groups, threshold)])
     if threshold == THRESHOLD and groups[0].task == DEFAULT_ENV_ID:  # the paper's claims: 0.8, its maze
         lines.extend(["", f"{heading} The paper's findings", "", *findings_section(groups, heading)])
+    study = study_section(groups, heading) if threshold == THRESHOLD else []
+    if study:
+        lines.extend(["", f"{heading} The study's questions", "", *study])
     return lines
 
 

@@ -1,5 +1,6 @@
 """The report's Markdown tables, each a list of lines: the runs, the last evaluation, the late-training
-window, steps to threshold, reach counts, the pairwise tests and the paper's findings.
+window, steps to threshold, reach counts, the pairwise tests, the paper's findings and the study's
+questions.
 
 Each takes the groups of one task (and the curves or settings it needs) and returns the table's
 lines, text and rows; eval/aggregate.py and eval/statistics.py hold the arithmetic.
@@ -13,8 +14,10 @@ import numpy as np
 
 from lava_bridge_mj.eval import statistics as stats
 from lava_bridge_mj.eval.aggregate import Curve, Group, late_means, steps_to_threshold
-from lava_bridge_mj.eval.findings import ALPHA, EFFECT, MOST, POWER, check_findings, common_step
+from lava_bridge_mj.eval.findings import ALPHA, EFFECT, MOST, POWER, ROBUST, check_findings, common_step
 from lava_bridge_mj.eval.report_groups import comparison_pairs
+from lava_bridge_mj.eval.study import answer_questions
+from lava_bridge_mj.eval.summary import THRESHOLD
 
 
 def _interval(curve: Curve, digits: int = 2) -> str:
@@ -166,4 +169,34 @@ def findings_section(groups: list[Group], heading: str = "##") -> list[str]:
               "| verdict |", "|---:|---|---|---|---|---|"]
     lines += [f"| {f.number} | {part.claim} | {part.measured} | {part.tests or '-'} | {part.power or '-'} | "
               f"**{part.verdict}** |" for f in found for part in f.parts]
+    return lines
+
+
+def study_section(groups: list[Group], heading: str = "##") -> list[str]:
+    """The study's questions on the groups of one task (eval/study.py), each comparison with its tests,
+    effect and verdict; empty when none of the questions' pairs was run."""
+    questions = answer_questions(groups)
+    if not questions:
+        return []
+    lines = [f"Each question is answered by the comparisons eval/study.py states, on each method's default "
+             f"configuration with 0.5K demo transitions: A against B on matched seeds (those both groups have, "
+             f"each up to the last step both have), *learns faster* by Fisher's exact test on the seeds reaching "
+             f"{THRESHOLD:g} and the rank test on the steps to it, *more robust* by Fisher's exact test on the "
+             f"seeds whose late-window success from ood is at least {ROBUST:g} and the permutation test on that "
+             f"success. Two-sided p-values, Holm-corrected as one family per question, reject at {ALPHA:g}. "
+             f"The effect is A's rate minus B's of the outcome behind Fisher's test, with Newcombe's 95% "
+             f"interval; it describes the size, the tests decide (Fisher's test conditions on the total and is "
+             f"the more conservative, so at a few seeds the interval can leave 0 out while no test rejects). Where no test rejects, *not enough seeds to decide* when Fisher's test has less than "
+             f"{POWER:.0%} power to detect a difference of {EFFECT:g} in the rate (with the seeds per group "
+             f"that would give it), *no difference found* otherwise."]
+    for number, question in enumerate(questions, 1):
+        lines += ["", f"{heading}# {number}. {question.text}", "", f"**{question.summary}.**", "",
+                  "| A against B | aspect | measured | effect: A - B [95% CI] | tests: p (Holm-adjusted) | "
+                  "power, where no test rejects | verdict |", "|---|---|---|---:|---|---|---|"]
+        for answer in question.answers:
+            part, effect = answer.part, answer.effect
+            effect_text = f"{effect.difference:+.2f} [{effect.low:+.2f}, {effect.high:+.2f}]" if effect else "-"
+            lines.append(f"| {answer.a} against {answer.b} | {answer.aspect} | {part.measured if part else '-'} | "
+                         f"{effect_text} | {(part.tests if part else '') or '-'} | "
+                         f"{(part.power if part else '') or '-'} | **{answer.verdict}** |")
     return lines

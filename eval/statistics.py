@@ -18,6 +18,9 @@ also states, per group and per pair of groups:
   (eval/aggregate.py's last third): the difference of the group means, two-sided, with the same
   number of permutations and a fixed seed (`PERMUTATION_SEED`): the same runs give the same p-values.
 - **Holm's correction** across the pairs a report tests, one family per test.
+- **Difference in rate** between two groups (the effect size behind Fisher's test) with Newcombe's
+  hybrid score interval (his method 10: each rate's Wilson interval, combined), which keeps its
+  coverage near 95% at a handful of seeds and at rates of 0 or 1, where the Wald interval collapses.
 - **Probability of improvement** (rliable's definition: P(X > Y) + P(X = Y) / 2 for a random seed of
   each group) of the late-window success from p0, and the **area under the success curve** per seed,
   normalised by the steps it spans (1 = success 1.0 at every evaluation).
@@ -82,6 +85,31 @@ def reach_count(reached: int, seeds: int, confidence: float = CONFIDENCE) -> Rea
         raise ValueError(f"a reach count needs 0 <= reached <= seeds and seeds >= 1, got {reached} of {seeds}")
     interval = scipy.stats.binomtest(reached, seeds).proportion_ci(confidence, method="exact")
     return ReachCount(reached, seeds, float(interval.low), float(interval.high))
+
+
+@dataclasses.dataclass(frozen=True)
+class RateDifference:
+    """Rate A minus rate B with the [low, high] confidence interval of the difference."""
+
+    difference: float
+    low: float
+    high: float
+
+
+def rate_difference(events_a: int, seeds_a: int, events_b: int, seeds_b: int,
+                    confidence: float = CONFIDENCE) -> RateDifference:
+    """The difference of two binomial rates and its Newcombe hybrid score interval (Newcombe 1998,
+    method 10), from scipy's Wilson score interval of each rate."""
+    for events, seeds in ((events_a, seeds_a), (events_b, seeds_b)):
+        if not 0 <= events <= seeds or seeds < 1:
+            raise ValueError(f"a rate needs 0 <= events <= seeds and seeds >= 1, got {events} of {seeds}")
+    rate_a, rate_b = events_a / seeds_a, events_b / seeds_b
+    (low_a, high_a), (low_b, high_b) = (
+        scipy.stats.binomtest(k, n).proportion_ci(confidence, method="wilson") for k, n in
+        ((events_a, seeds_a), (events_b, seeds_b)))
+    difference = rate_a - rate_b
+    return RateDifference(difference, difference - math.hypot(rate_a - low_a, high_b - rate_b),
+                          difference + math.hypot(high_a - rate_a, rate_b - low_b))
 
 
 def normalised_auc(steps: np.ndarray, success: np.ndarray) -> np.ndarray:

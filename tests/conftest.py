@@ -48,6 +48,35 @@ def metrics_without_wall_time(run_dir):
         return [{k: v for k, v in row.items() if k != "wall_time"} for row in csv.DictReader(f)]
 
 
+def write_metric_runs(root, method, p0_by_seed, demos=500, ood=None, **config):
+    """One run directory per seed under ROOT/METHOD-DEMOS-N, evaluations at steps 1000, 2000, ... with
+    the given success from p0 and success from ood = `ood` or p0; config.json RunConfig's defaults
+    changed by `config`. For tests of what the report makes of given numbers."""
+    import json
+
+    from lava_bridge_mj.eval.config import RunConfig
+    from lava_bridge_mj.eval.run_files import METRIC_FIELDS
+
+    for seed, p0 in p0_by_seed.items():
+        directory = root / f"{method}-{demos}-{len(config)}" / f"seed{seed}"
+        directory.mkdir(parents=True)
+        (directory / "config.json").write_text(json.dumps(
+            {**RunConfig().to_dict(), "method": method, "seed": seed, "demos": demos, **config}))
+        with open(directory / "metrics.csv", "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=METRIC_FIELDS)
+            writer.writeheader()
+            for i, value in enumerate(p0):
+                writer.writerow({name: 0.0 for name in METRIC_FIELDS} | {
+                    "step": 1000 * (i + 1), "success_p0": value, "success_ood": value if ood is None else ood[i]})
+
+
+def groups_in(root):
+    """The groups of the runs under `root`, as the report forms them."""
+    from lava_bridge_mj.eval import aggregate
+
+    return aggregate.group_runs(aggregate.find_runs(root))
+
+
 def interrupted_copy(full_dir, resumed_dir):
     """What a run killed mid-way leaves: config, the metrics and episode log written so far (with rows
     past the checkpoint), and the checkpoint before the last one as its latest."""

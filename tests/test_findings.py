@@ -2,45 +2,21 @@
 Fisher's p for all against none of n seeds is 2 / C(2n, n); the power and seeds needed come from
 eval/statistics.py's exact power function at the rates a 0.3 difference implies around the pooled rate."""
 
-import csv
-import json
 import math
 
 import pytest
+from conftest import groups_in, write_metric_runs
 
 pytest.importorskip("rliable", reason="the tests use rliable's probability of improvement: pip install -e '.[plots]'")
 
 from lava_bridge_mj.eval import aggregate, findings  # noqa: E402
 from lava_bridge_mj.eval import statistics as stats  # noqa: E402
-from lava_bridge_mj.eval.config import RunConfig  # noqa: E402
 from lava_bridge_mj.eval.report_tables import findings_section  # noqa: E402
-from lava_bridge_mj.eval.run_files import METRIC_FIELDS  # noqa: E402
-
-BASE_CONFIG = RunConfig().to_dict()
-
-
-def write_runs(root, method, p0_by_seed, demos=500, ood=None, **config):
-    """One run directory per seed, evaluations at steps 1000, 2000, ...; success from ood = `ood` or p0."""
-    for seed, p0 in p0_by_seed.items():
-        directory = root / f"{method}-{demos}-{len(config)}" / f"seed{seed}"
-        directory.mkdir(parents=True)
-        (directory / "config.json").write_text(json.dumps(
-            {**BASE_CONFIG, "method": method, "seed": seed, "demos": demos, **config}))
-        with open(directory / "metrics.csv", "w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=METRIC_FIELDS)
-            writer.writeheader()
-            for i, value in enumerate(p0):
-                writer.writerow({name: 0.0 for name in METRIC_FIELDS} | {
-                    "step": 1000 * (i + 1), "success_p0": value, "success_ood": value if ood is None else ood[i]})
-
-
-def groups_in(root):
-    return aggregate.group_runs(aggregate.find_runs(root))
 
 
 def two_groups(tmp_path, a, b):
-    write_runs(tmp_path, "auxss", a)
-    write_runs(tmp_path, "uniform_ss", b)
+    write_metric_runs(tmp_path, "auxss", a)
+    write_metric_runs(tmp_path, "uniform_ss", b)
     [group_a] = aggregate.groups_of(groups_in(tmp_path), "auxss")
     [group_b] = aggregate.groups_of(groups_in(tmp_path), "uniform_ss")
     return group_a, group_b
@@ -101,7 +77,7 @@ def test_mismatched_seed_sets_are_cut_to_the_common_seeds_and_step(tmp_path):
     assert "Fisher's test on reach counts p = 0.00794" in part.tests and 2 / math.comb(10, 5) == pytest.approx(0.00794,
                                                                                                               abs=1e-5)
     # no seed in common: no comparison
-    write_runs(tmp_path / "other", "auxss", {7: [1.0]})
+    write_metric_runs(tmp_path / "other", "auxss", {7: [1.0]})
     [lonely] = groups_in(tmp_path / "other")
     assert findings.matched(lonely, b) is None and findings.reach_comparison(lonely, b, "x") is None
 
@@ -117,10 +93,10 @@ def test_claims_about_one_group_use_the_exact_interval_against_one_half():
 
 
 def test_check_findings_holm_corrects_across_findings_and_names_what_is_missing(tmp_path):
-    write_runs(tmp_path, "sac", {s: [0.0, 0.1] for s in range(10)})
-    write_runs(tmp_path, "auxss", {s: [0.0, 1.0] for s in range(10)})
-    write_runs(tmp_path, "hysac", {s: [0.0, 0.0] for s in range(10)})
-    write_runs(tmp_path, "auxss", {s: [0.0, 1.0] for s in range(5)}, strategy={"ema": 0.5})  # a variant: finding 8
+    write_metric_runs(tmp_path, "sac", {s: [0.0, 0.1] for s in range(10)})
+    write_metric_runs(tmp_path, "auxss", {s: [0.0, 1.0] for s in range(10)})
+    write_metric_runs(tmp_path, "hysac", {s: [0.0, 0.0] for s in range(10)})
+    write_metric_runs(tmp_path, "auxss", {s: [0.0, 1.0] for s in range(5)}, strategy={"ema": 0.5})  # a variant: finding 8
     groups = groups_in(tmp_path)
     found = {f.number: f for f in findings.check_findings(groups)}
     assert [f.number for f in found.values()] == list(range(1, 9))
@@ -142,8 +118,8 @@ def test_check_findings_holm_corrects_across_findings_and_names_what_is_missing(
 
 
 def test_findings_stop_online_methods_at_the_step_all_of_them_have(tmp_path):
-    write_runs(tmp_path, "auxss", {s: [0.0, 0.0, 0.0, 1.0] for s in range(3)})
-    write_runs(tmp_path, "omega_ss", {s: [0.0, 0.0] for s in range(3)})
+    write_metric_runs(tmp_path, "auxss", {s: [0.0, 0.0, 0.0, 1.0] for s in range(3)})
+    write_metric_runs(tmp_path, "omega_ss", {s: [0.0, 0.0] for s in range(3)})
     groups = groups_in(tmp_path)
     assert findings.common_step(groups) == 2000
     found = {f.number: f for f in findings.check_findings(groups)}

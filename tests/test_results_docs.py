@@ -3,6 +3,7 @@
 a hand-edited table fails here. The commands are read from the Makefile, the one place they live."""
 
 import importlib.util
+import re
 import shlex
 from pathlib import Path
 
@@ -50,3 +51,36 @@ def test_the_difficulty_tables_sac_section_is_what_the_committed_sac_runs_give(m
     committed = (ROOT / "results/suite/difficulty.md").read_text()
     monkeypatch.chdir(ROOT)  # the section names its directory as given, relative to the repository
     assert committed[committed.index("## SAC from p0"):] == difficulty.sac_from_p0(Path("results/suite/sac_p0"))
+
+
+def findings_verdicts(text, pattern):
+    """Finding number -> verdict, read from `text` by `pattern` (two groups: number, verdict)."""
+    return {int(n): verdict.strip() for n, verdict in re.findall(pattern, text, re.MULTILINE)}
+
+
+REPORT_ROW = r"^\| (\d) \| [^|]+ \| \*\*([^*]+)\*\* \|$"
+
+
+def test_results_md_and_the_readme_state_the_verdicts_the_committed_reports_give():
+    # findings 1-7 stand on docs/report (every method at 100k), finding 8 on docs/report_ablations;
+    # test_committed_report_is_regenerated_exactly_from_results ties those to the data
+    main = findings_verdicts((ROOT / "docs/report/report.md").read_text(), REPORT_ROW)
+    ablations = findings_verdicts((ROOT / "docs/report_ablations/report.md").read_text(), REPORT_ROW)
+    expected = {n: main[n] for n in range(1, 8)} | {8: ablations[8]}
+    results = (ROOT / "docs/results.md").read_text()
+    assert findings_verdicts(results, r"^\| (\d) \| [^|]+ \| \*\*([^*]+)\*\*") == expected, "docs/results.md table"
+    assert findings_verdicts(results, r"^### (\d)\. .*: \*\*([^*]+)\*\*") == expected, "docs/results.md headings"
+    readme = (ROOT / "README.md").read_text()
+    verdicts = "|".join(map(re.escape, set(expected.values())))
+    assert findings_verdicts(readme, rf"^\| (\d) \| [^|]+ \| ({verdicts})\b") == expected, "README findings table"
+
+
+def test_results_md_quotes_the_study_question_on_lavabridge_v0_as_the_report_gives_it():
+    # each comparison: the pair, the aspect, the effect with its interval and the verdict
+    row = r"^\| (\w+ against \w+) \| (learns faster|more robust) \| .*?([+-]\d\.\d\d \[[+-]\d\.\d\d, [+-]\d\.\d\d\]) \|.* \*\*([^*]+)\*\* \|$"
+    report_text = (ROOT / "docs/report/report.md").read_text()
+    report_rows = re.findall(row, report_text[report_text.index("## The study's questions"):], re.MULTILINE)
+    results = (ROOT / "docs/results.md").read_text()
+    section = results[results.index("## The study's first question on LavaBridge-v0"):]
+    section = section[:section.index("\n## ")]
+    assert len(report_rows) == 8 and re.findall(row, section, re.MULTILINE) == report_rows

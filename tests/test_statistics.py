@@ -41,6 +41,35 @@ def test_area_under_the_success_curve_by_hand():
     np.testing.assert_allclose(stats.normalised_auc([5000], [[0.4], [0.6]]), [0.4, 0.6])
 
 
+# --- the difference of two rates ------------------------------------------------------------------
+@pytest.mark.parametrize("counts, low, high", [
+    ((56, 70, 48, 80), 0.0524, 0.3339),  # Newcombe (1998), Table II, example (a), method 10
+    ((9, 10, 3, 10), 0.1705, 0.8090),  # example (b)
+])
+def test_rate_difference_interval_is_newcombes_published_one(counts, low, high):
+    difference = stats.rate_difference(*counts)
+    assert difference.difference == pytest.approx(counts[0] / counts[1] - counts[2] / counts[3])
+    assert difference.low == pytest.approx(low, abs=5e-5) and difference.high == pytest.approx(high, abs=5e-5)
+
+
+def test_rate_difference_of_all_against_none_by_hand():
+    # 10 of 10 against 0 of 10: Wilson's lower bound for 10/10 is n / (n + z^2) = 10 / 13.8415 = 0.7225,
+    # and the upper bound for 0/10 is z^2 / (n + z^2) = 0.2775; the interval is 1 - hypot(0.2775, 0.2775)
+    # to 1 (the other two distances are 0)
+    z2 = scipy.stats.norm.ppf(0.975) ** 2
+    difference = stats.rate_difference(10, 10, 0, 10)
+    assert difference.difference == 1 and difference.high == pytest.approx(1.0)
+    assert difference.low == pytest.approx(1 - math.hypot(1 - 10 / (10 + z2), z2 / (10 + z2)))
+    assert difference.low == pytest.approx(0.6075, abs=1e-4)
+    mirrored = stats.rate_difference(0, 10, 10, 10)
+    assert (mirrored.low, mirrored.high) == pytest.approx((-difference.high, -difference.low))
+
+
+def test_a_rate_that_cannot_be_is_refused():
+    with pytest.raises(ValueError, match="11 of 10"):
+        stats.rate_difference(11, 10, 0, 10)
+
+
 # --- tests between two groups --------------------------------------------------------------------
 @pytest.mark.parametrize("other, expected", [(15, 910 / 4060), (12, 1.0), (14, 0.5977)])
 def test_fisher_on_the_reach_counts_of_fifteen_seeds(other, expected):

@@ -1,0 +1,117 @@
+"""The study's questions on one task, each comparison decided by a stated test at a stated level.
+
+The package exists to answer, task by task, which start-state distribution over demonstration states
+makes SAC learn fastest and most robustly. `answer_questions(groups)` asks two questions of the groups
+of one task:
+
+1. **Does a safety-derived start distribution beat the undirected ones?** AuxSS and Omega-SS, each
+   against U-SS and GoalDist-SS: four pairs.
+2. **AuxSS or RFCL's reverse curriculum?** AuxSS against reverse_ss: one pair.
+
+Each pair is compared on two aspects, as eval/findings.py compares them (matched seeds, each pair up to
+the last evaluation step both groups have):
+
+- *learns faster*: reaching p0 success 0.8 more often or sooner (Fisher's exact test on the reach
+  counts, the rank test on the steps to 0.8 with "never" tied last);
+- *more robust*: more seeds whose mean late-window success from ood is at least 0.5 (Fisher's exact
+  test), or a higher mean of it (permutation test).
+
+The claim "A is ahead of B" is settled by findings' rule (`findings.settle`): A ahead when a test
+rejects with A ahead and none with B ahead, B ahead the other way round; when no test rejects, *no
+difference found* if Fisher's test has at least 80% power to detect a difference of 0.3 in the rate
+with these seeds, else *not enough seeds to decide* with the seeds per group that would give 80%. The
+p-values of one question on one task form one Holm family (eight comparisons, 16 p-values, for the
+first question; two and four for the second); tasks are separate questions.
+
+Beside each verdict stands the effect: the rate of A minus the rate of B of the binary outcome behind
+Fisher's test (seeds reaching 0.8, or robust seeds), with Newcombe's 95% interval
+(`statistics.rate_difference`), so a negative answer says how large a difference the seeds leave
+possible.
+
+Groups are each method's default configuration with 0.5K demo transitions (`findings.pick`); a pair
+whose groups are not both present is reported as not run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from lava_bridge_mj.eval import statistics as stats
+from lava_bridge_mj.eval.aggregate import Group
+from lava_bridge_mj.eval.findings import (CONTRADICTED, SUPPORTED, Part, pick, reach_comparison,
+                                          robust_comparison, settle)
+
+SAFETY = ("auxss", "omega_ss")
+"""Start distributions derived from how safe a demo state is to start from."""
+UNDIRECTED = ("uniform_ss", "goaldist_ss")
+"""Start distributions that ignore safety: uniform over demo states, or by distance to the goal."""
+QUESTIONS = (
+    ("Does a safety-derived start distribution (AuxSS, Omega-SS) beat uniform and goal-distance starts "
+     "(U-SS, GoalDist-SS)?", tuple((a, b) for a in SAFETY for b in UNDIRECTED)),
+    ("AuxSS or RFCL's reverse curriculum (reverse_ss)?", (("auxss", "reverse_ss"),)),
+)
+"""Each question and the (A, B) pairs that answer it, A the side the question asks about."""
+ASPECTS = (("learns faster", reach_comparison), ("more robust", robust_comparison))
+NOT_RUN, NO_COMMON_SEEDS = "not run", "no seed in common"
+
+
+@dataclasses.dataclass(frozen=True)
+class Answer:
+    """One comparison of one question: A against B on one aspect."""
+
+    a: str
+    b: str
+    aspect: str
+    part: Part | None
+    """The findings' tested statement; None when a group is not run or the two share no seed."""
+    effect: stats.RateDifference | None
+    """Rate of A minus rate of B of the outcome behind Fisher's test, with its 95% interval."""
+    absent: str = NOT_RUN
+    """Why there is no `part`."""
+
+    @property
+    def verdict(self) -> str:
+        """Who is ahead, or why neither is: the findings' verdict read as an answer."""
+        if self.part is None:
+            return self.absent
+        return {SUPPORTED: f"{self.a} ahead", CONTRADICTED: f"{self.b} ahead"}.get(self.part.verdict,
+                                                                                 self.part.verdict)
+
+
+@dataclasses.dataclass(frozen=True)
+class Question:
+    text: str
+    answers: list[Answer]
+
+    @property
+    def summary(self) -> str:
+        """How many comparisons give each verdict, most frequent first: '3 auxss ahead, 5 not enough ...'."""
+        counts: dict[str, int] = {}
+        for answer in self.answers:
+            counts[answer.verdict] = counts.get(answer.verdict, 0) + 1
+        return ", ".join(f"{n} {verdict}" for verdict, n in sorted(counts.items(), key=lambda kv: -kv[1]))
+
+
+def answer_questions(groups: list[Group]) -> list[Question]:
+    """The study's questions on the groups of one task; a question none of whose pairs was run is left
+    out."""
+    if len({g.task for g in groups}) > 1:
+        raise ValueError(f"the study's questions are asked per task, got groups of "
+                         f"{sorted({g.task for g in groups})}")
+    questions = []
+    for text, pairs in QUESTIONS:
+        drafts, pending = [], []
+        for a, b in pairs:
+            ga, gb = pick(groups, a), pick(groups, b)
+            for aspect, comparison in ASPECTS:
+                item = comparison(ga, gb, f"{a} {aspect} than {b}") if ga and gb else None
+                drafts.append((a, b, aspect, item, NO_COMMON_SEEDS if ga and gb else NOT_RUN))
+                pending += [item] if item is not None else []
+        if not any(absent == NO_COMMON_SEEDS or item for *_, item, absent in drafts):
+            continue
+        settled = iter(settle(pending))  # one Holm family per question
+        answers = [Answer(a, b, aspect, next(settled) if item else None,
+                          stats.rate_difference(*item.counts) if item else None, absent)
+                   for a, b, aspect, item, absent in drafts]
+        questions.append(Question(text, answers))
+    return questions

@@ -1,0 +1,102 @@
+"""The study's questions (eval/study.py) on small hand-built groups whose tests are computed by hand:
+Fisher's p for all against none of n seeds is 2 / C(2n, n), the rank and permutation tests of ten
+seeds against ten come from 10,000 random splits (scipy: (0 + 1) / 10,001, two-sided 0.0002), and
+Holm's correction multiplies the k-th smallest of m p-values by m - k + 1."""
+
+import math
+
+import pytest
+from conftest import groups_in, write_metric_runs
+
+pytest.importorskip("rliable", reason="the tests use rliable's probability of improvement: pip install -e '.[plots]'")
+
+from lava_bridge_mj.eval import study  # noqa: E402
+from lava_bridge_mj.eval.report_tables import study_section  # noqa: E402
+
+SOLVED = {seed: [0.0, 1.0] for seed in range(10)}
+"""Ten seeds at success 1.0 from p0 and ood from step 2,000: all reach 0.8 and all are robust."""
+FAILED = {seed: [0.0, 0.0] for seed in range(10)}
+FISHER_ALL_AGAINST_NONE = 2 / math.comb(20, 10)  # 1.0825e-05
+
+
+def answers(tmp_path, runs):
+    for method, p0_by_seed in runs.items():
+        write_metric_runs(tmp_path, method, p0_by_seed)
+    return {q.text: q for q in study.answer_questions(groups_in(tmp_path))}
+
+
+def safety_question(questions):
+    [question] = [q for q in questions.values() if q.text.startswith("Does a safety-derived")]
+    return question
+
+
+def test_a_clear_win_is_answered_with_holm_over_the_question_and_newcombes_interval(tmp_path):
+    questions = answers(tmp_path, {"auxss": SOLVED, "uniform_ss": FAILED})
+    question = safety_question(questions)
+    assert len(questions) == 1, "the reverse curriculum's question needs reverse_ss runs"
+    faster, robust = [a for a in question.answers if a.part is not None]
+    assert (faster.a, faster.b, faster.aspect, robust.aspect) == ("auxss", "uniform_ss", "learns faster", "more robust")
+    assert faster.verdict == robust.verdict == "auxss ahead"
+    # the family is the four p-values of the two comparisons made: 1.08e-05 twice and 0.0002 twice;
+    # Holm: 1.08e-05 x 4 = 4.33e-05 (the second 1.08e-05 x 3 is raised to it), 0.0002 x 2 = 0.0004
+    assert faster.part.tests == ("Fisher's test on reach counts p = 1.08e-05 (Holm 4.33e-05); "
+                                 "rank test on steps to 0.8 p = 0.0002 (Holm 0.0004)")
+    assert robust.part.tests == ("Fisher's test on robust-seed counts p = 1.08e-05 (Holm 4.33e-05); "
+                                 "permutation test on late ood success p = 0.0002 (Holm 0.0004)")
+    assert FISHER_ALL_AGAINST_NONE * 4 == pytest.approx(4.33e-05, rel=1e-3)
+    # all against none: +1 with Newcombe's lower bound 1 - hypot(0.2775, 0.2775) = 0.61 (test_statistics)
+    for answer in (faster, robust):
+        assert answer.effect.difference == 1 and answer.effect.low == pytest.approx(0.6075, abs=1e-4)
+    absent = [a for a in question.answers if a.part is None]
+    assert len(absent) == 6 and {a.verdict for a in absent} == {"not run"}
+    assert question.summary == "6 not run, 2 auxss ahead"
+
+
+def test_the_reverse_curriculum_ahead_is_said_so_and_its_question_is_a_family_of_its_own(tmp_path):
+    alone = safety_question(answers(tmp_path / "alone", {"auxss": SOLVED, "uniform_ss": FAILED}))
+    questions = answers(tmp_path / "both", {"auxss": FAILED, "uniform_ss": FAILED, "reverse_ss": SOLVED})
+    [reverse] = [q for q in questions.values() if "reverse curriculum" in q.text]
+    assert [(a.a, a.b, a.verdict) for a in reverse.answers] == [("auxss", "reverse_ss", "reverse_ss ahead")] * 2
+    assert reverse.answers[0].effect.difference == -1
+    # two comparisons in the family, so Holm multiplies the smallest p by 4 as above, not by 6
+    assert "(Holm 4.33e-05)" in reverse.answers[0].part.tests
+    # auxss and uniform_ss both fail: nothing rejects, and ten seeds have too little power at a pooled rate 0
+    [tie] = [a for a in safety_question(questions).answers if a.part and a.aspect == "learns faster"]
+    assert tie.verdict == "not enough seeds to decide" and tie.effect.difference == 0
+    assert tie.part.power.startswith("power ") and "seeds per group give 80%" in tie.part.power
+    assert alone.answers[0].part.tests != tie.part.tests
+
+
+def test_a_weak_effect_at_five_seeds_is_not_enough_seeds_to_decide_with_its_interval(tmp_path):
+    # 4 of 5 against 1 of 5: Fisher's p = 0.206 (scipy), no rejection; the difference 0.6 has Newcombe's
+    # interval from Wilson's intervals of 0.8 [0.376, 0.964] and 0.2 [0.036, 0.624]
+    auxss = {s: [0.0, 1.0] if s < 4 else [0.0, 0.0] for s in range(5)}
+    uniform = {s: [0.0, 1.0] if s < 1 else [0.0, 0.0] for s in range(5)}
+    faster = safety_question(answers(tmp_path, {"auxss": auxss, "uniform_ss": uniform})).answers[0]
+    assert faster.verdict == "not enough seeds to decide"
+    assert faster.effect.difference == pytest.approx(0.6)
+    assert faster.effect.low == pytest.approx(0.6 - math.hypot(0.8 - 0.3755, 0.6245 - 0.2), abs=2e-3)
+    assert faster.effect.high == pytest.approx(0.6 + math.hypot(0.9638 - 0.8, 0.2 - 0.0362), abs=2e-3)
+    assert faster.effect.low < 0 < faster.effect.high
+
+
+def test_groups_that_share_no_seed_are_named_so_and_tasks_are_not_mixed(tmp_path):
+    questions = answers(tmp_path, {"auxss": {0: [0.0, 1.0]}, "uniform_ss": {1: [0.0, 1.0]}})
+    assert {a.verdict for a in safety_question(questions).answers[:2]} == {"no seed in common"}
+    write_metric_runs(tmp_path, "uniform_ss", {2: [0.0, 1.0]}, env_id="LavaBridgeNarrow-v0")
+    with pytest.raises(ValueError, match="per task.*LavaBridgeNarrow-v0"):
+        study.answer_questions(groups_in(tmp_path))
+
+
+def test_the_report_section_shows_each_comparison_with_its_effect_and_nothing_without_the_methods(tmp_path):
+    write_metric_runs(tmp_path, "auxss", SOLVED)
+    write_metric_runs(tmp_path, "uniform_ss", FAILED)
+    lines = study_section(groups_in(tmp_path))
+    assert "### 1. Does a safety-derived start distribution (AuxSS, Omega-SS) beat uniform and goal-distance " \
+           "starts (U-SS, GoalDist-SS)?" in lines
+    assert "**6 not run, 2 auxss ahead.**" in lines
+    [row] = [line for line in lines if line.startswith("| auxss against uniform_ss | learns faster")]
+    assert "| +1.00 [+0.61, +1.00] |" in row and row.endswith("| - | **auxss ahead** |")
+    assert "| omega_ss against goaldist_ss | more robust | - | - | - | - | **not run** |" in lines
+    write_metric_runs(tmp_path / "sac", "sac", FAILED)
+    assert study_section(groups_in(tmp_path / "sac")) == []
