@@ -12,7 +12,7 @@ import math
 
 from lava_bridge_mj.agents.methods import METHODS
 from lava_bridge_mj.eval.aggregate import Group, RunRecord, groups_of, steps_to_threshold
-from lava_bridge_mj.eval.findings import is_default, pick
+from lava_bridge_mj.eval.claims import is_default, pick
 
 STANDARD_DEMOS = 500
 """The paper's benchmark protocol gives every demo-using method 500 transitions (0.5K)."""

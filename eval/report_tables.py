@@ -14,7 +14,8 @@ import numpy as np
 
 from lava_bridge_mj.eval import statistics as stats
 from lava_bridge_mj.eval.aggregate import Curve, Group, late_means, steps_to_threshold
-from lava_bridge_mj.eval.findings import ALPHA, EFFECT, MOST, POWER, ROBUST, check_findings, common_step
+from lava_bridge_mj.eval.claims import ALPHA, EFFECT, MOST, POWER, ROBUST
+from lava_bridge_mj.eval.findings import check_findings, common_step
 from lava_bridge_mj.eval.report_groups import comparison_pairs
 from lava_bridge_mj.eval.study import answer_questions
 from lava_bridge_mj.eval.summary import THRESHOLD
@@ -149,19 +150,20 @@ def pairwise_section(groups: list[Group], threshold: float) -> list[str]:
 
 
 def findings_section(groups: list[Group], heading: str = "##") -> list[str]:
-    """The paper's findings, each decided by the tests eval/findings.py states, and the tests behind them."""
+    """The paper's findings, each decided by the tests eval/claims.py and eval/findings.py state, and the tests
+    behind them."""
     step = common_step(groups)
     cut = f" Online methods are compared up to step {step:,.0f}, the last that all of them have." if step else ""
     found = check_findings(groups)
     tested = [part.tests.count("Holm") for f in found for part in f.parts if part.tests]
-    lines = [f"Each claim decided by the tests written in eval/findings.py (default configurations only but in "
-             f"finding 8). A comparison uses matched seeds, those both groups have, each up to the last step both "
-             f"have; its two-sided p-values are Holm-corrected as one family, the {sum(tested)} p-values of the "
-             f"{len(tested)} comparisons of this table, and a test rejects at {ALPHA:g}. Where none rejects, the "
-             f"power is that of Fisher's exact test at {ALPHA:g} with these seeds to detect a difference of "
-             f"{EFFECT:g} in the rate around the pooled observed rate: *not enough seeds to decide* below "
-             f"{POWER:.0%}, *no difference found* at or above. A claim about one group uses the exact 95% "
-             f"interval of its rate against {MOST:g}.{cut}", "",
+    lines = [f"Each claim decided by the tests written in eval/claims.py and eval/findings.py (default "
+             f"configurations only but in finding 8). A comparison uses matched seeds, those both groups have, "
+             f"each up to the last step both have; its two-sided p-values are Holm-corrected as one family, the "
+             f"{sum(tested)} p-values of the {len(tested)} comparisons of this table, and a test rejects at "
+             f"{ALPHA:g}. Where none rejects, the power is that of Fisher's exact test at {ALPHA:g} with these "
+             f"seeds to detect a difference of {EFFECT:g} in the rate around the pooled observed rate: *not "
+             f"enough seeds to decide* below {POWER:.0%}, *no difference found* at or above. A claim about one "
+             f"group uses the exact 95% interval of its rate against {MOST:g}.{cut}", "",
              "| # | claim | verdict |", "|---:|---|---|"]
     lines += [f"| {f.number} | {f.claim} | **{f.verdict}** |" for f in found]
     lines += ["", f"{heading}# The tests behind the verdicts", "",
@@ -186,7 +188,8 @@ def study_section(groups: list[Group], heading: str = "##") -> list[str]:
              f"success. Two-sided p-values, Holm-corrected as one family per question, reject at {ALPHA:g}. "
              f"The effect is A's rate minus B's of the outcome behind Fisher's test, with Newcombe's 95% "
              f"interval; it describes the size, the tests decide (Fisher's test conditions on the total and is "
-             f"the more conservative, so at a few seeds the interval can leave 0 out while no test rejects). Where no test rejects, *not enough seeds to decide* when Fisher's test has less than "
+             f"the more conservative, so at a few seeds the interval can leave 0 out while no test rejects). "
+             f"Where no test rejects, *not enough seeds to decide* when Fisher's test has less than "
              f"{POWER:.0%} power to detect a difference of {EFFECT:g} in the rate (with the seeds per group "
              f"that would give it), *no difference found* otherwise."]
     for number, question in enumerate(questions, 1):

@@ -8,7 +8,7 @@ of one task:
    against U-SS and GoalDist-SS: four pairs.
 2. **AuxSS or RFCL's reverse curriculum?** AuxSS against reverse_ss: one pair.
 
-Each pair is compared on two aspects, as eval/findings.py compares them (matched seeds, each pair up to
+Each pair is compared on two aspects, as eval/claims.py compares them (matched seeds, each pair up to
 the last evaluation step both groups have):
 
 - *learns faster*: reaching p0 success 0.8 more often or sooner (Fisher's exact test on the reach
@@ -16,7 +16,7 @@ the last evaluation step both groups have):
 - *more robust*: more seeds whose mean late-window success from ood is at least 0.5 (Fisher's exact
   test), or a higher mean of it (permutation test).
 
-The claim "A is ahead of B" is settled by findings' rule (`findings.settle`): A ahead when a test
+The claim "A is ahead of B" is settled by the claims' rule (`claims.settle`): A ahead when a test
 rejects with A ahead and none with B ahead, B ahead the other way round; when no test rejects, *no
 difference found* if Fisher's test has at least 80% power to detect a difference of 0.3 in the rate
 with these seeds, else *not enough seeds to decide* with the seeds per group that would give 80%. The
@@ -28,7 +28,7 @@ Fisher's test (seeds reaching 0.8, or robust seeds), with Newcombe's 95% interva
 (`statistics.rate_difference`), so a negative answer says how large a difference the seeds leave
 possible.
 
-Groups are each method's default configuration with 0.5K demo transitions (`findings.pick`); a pair
+Groups are each method's default configuration with 0.5K demo transitions (`claims.pick`); a pair
 whose groups are not both present is reported as not run.
 """
 
@@ -38,8 +38,8 @@ import dataclasses
 
 from lava_bridge_mj.eval import statistics as stats
 from lava_bridge_mj.eval.aggregate import Group
-from lava_bridge_mj.eval.findings import (CONTRADICTED, SUPPORTED, Part, pick, reach_comparison,
-                                          robust_comparison, settle)
+from lava_bridge_mj.eval.claims import (CONTRADICTED, NOT_RUN, SUPPORTED, Part, pick, reach_comparison,
+                                        robust_comparison, settle)
 
 SAFETY = ("auxss", "omega_ss")
 """Start distributions derived from how safe a demo state is to start from."""
@@ -52,7 +52,7 @@ QUESTIONS = (
 )
 """Each question and the (A, B) pairs that answer it, A the side the question asks about."""
 ASPECTS = (("learns faster", reach_comparison), ("more robust", robust_comparison))
-NOT_RUN, NO_COMMON_SEEDS = "not run", "no seed in common"
+NO_COMMON_SEEDS = "no seed in common"
 
 
 @dataclasses.dataclass(frozen=True)

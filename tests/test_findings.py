@@ -1,4 +1,4 @@
-"""The findings' verdicts (eval/findings.py) on small hand-built groups whose tests are computed by hand:
+"""The findings' verdicts (eval/findings.py) and the claims they are made of (eval/claims.py) on small hand-built
 Fisher's p for all against none of n seeds is 2 / C(2n, n); the power and seeds needed come from
 eval/statistics.py's exact power function at the rates a 0.3 difference implies around the pooled rate."""
 
@@ -9,7 +9,7 @@ from conftest import groups_in, write_metric_runs
 
 pytest.importorskip("rliable", reason="the tests use rliable's probability of improvement: pip install -e '.[plots]'")
 
-from lava_bridge_mj.eval import aggregate, findings  # noqa: E402
+from lava_bridge_mj.eval import aggregate, claims, findings  # noqa: E402
 from lava_bridge_mj.eval import statistics as stats  # noqa: E402
 from lava_bridge_mj.eval.report_tables import findings_section  # noqa: E402
 
@@ -23,7 +23,7 @@ def two_groups(tmp_path, a, b):
 
 
 def settle_one(a, b, matches=False):
-    [part] = findings.settle([findings.reach_comparison(a, b, "A against B", matches=matches)])
+    [part] = claims.settle([claims.reach_comparison(a, b, "A against B", matches=matches)])
     return part
 
 
@@ -34,11 +34,11 @@ def test_a_clear_win_is_supported_and_a_reversed_one_contradicted(tmp_path):
     a, b = two_groups(tmp_path, {s: [0.0, 1.0] for s in range(10)}, {s: [0.0, 0.0] for s in range(10)})
     assert 2 / math.comb(20, 10) == pytest.approx(1.0825e-05, rel=1e-4)
     part = settle_one(a, b)
-    assert part.verdict == findings.SUPPORTED and part.power == ""
+    assert part.verdict == claims.SUPPORTED and part.power == ""
     assert part.tests == ("Fisher's test on reach counts p = 1.08e-05 (Holm 2.17e-05); "
                           "rank test on steps to 0.8 p = 0.0002 (Holm 0.0002)")
     assert "reached 0.8 10/10 [0.69, 1.00] against 0/10 [0.00, 0.31], P(A sooner) = 1.00" in part.measured
-    assert settle_one(b, a).verdict == findings.CONTRADICTED
+    assert settle_one(b, a).verdict == claims.CONTRADICTED
 
 
 def test_an_effect_at_5_against_5_seeds_is_not_enough_seeds_to_decide(tmp_path):
@@ -47,7 +47,7 @@ def test_an_effect_at_5_against_5_seeds_is_not_enough_seeds_to_decide(tmp_path):
     a, b = two_groups(tmp_path, {0: [0, 1], 1: [0, 1], 2: [0, 1], 3: [0, 1], 4: [0, 0]},
                       {0: [0, 1], 1: [0, 0], 2: [0, 0], 3: [0, 0], 4: [0, 0]})
     part = settle_one(a, b)
-    assert part.verdict == findings.UNDECIDED
+    assert part.verdict == claims.UNDECIDED
     assert "Fisher's test on reach counts p = 0.206" in part.tests
     assert stats.seeds_needed(0.65, 0.35) == 49 and stats.power(0.65, 0.35, 5, 5) == pytest.approx(0.0865, abs=1e-4)
     assert part.power == "power 0.09 to detect 0.65 against 0.35; 49 seeds per group give 80%"
@@ -59,8 +59,8 @@ def test_no_difference_with_enough_seeds_is_said_so_and_supports_a_claim_that_th
     a, b = two_groups(tmp_path, {s: [0.0, 1.0] for s in range(25)}, {s: [0.0, 1.0] for s in range(25)})
     assert stats.power(1.0, 0.7, 25, 25) == pytest.approx(0.8065, abs=1e-4)
     part = settle_one(a, b)
-    assert part.verdict == findings.NO_DIFFERENCE and part.power.startswith("power 0.81 to detect 1.00 against 0.70")
-    assert settle_one(a, b, matches=True).verdict == findings.SUPPORTED
+    assert part.verdict == claims.NO_DIFFERENCE and part.power.startswith("power 0.81 to detect 1.00 against 0.70")
+    assert settle_one(a, b, matches=True).verdict == claims.SUPPORTED
 
 
 def test_mismatched_seed_sets_are_cut_to_the_common_seeds_and_step(tmp_path):
@@ -69,7 +69,7 @@ def test_mismatched_seed_sets_are_cut_to_the_common_seeds_and_step(tmp_path):
     # the step both have (2,000), 5 of 5 against 0 of 5: Fisher's p = 2 / C(10, 5) = 0.00794
     a, b = two_groups(tmp_path, {s: [0.0, 1.0] if s < 5 else [0.0, 0.0] for s in range(10)},
                       {s: [0.0, 0.0, 1.0] for s in [*range(5), *range(20, 25)]})
-    matched_a, matched_b = findings.matched(a, b)
+    matched_a, matched_b = claims.matched(a, b)
     assert matched_a.seeds == matched_b.seeds == [0, 1, 2, 3, 4]
     assert list(matched_a.steps) == list(matched_b.steps) == [1000, 2000]
     part = settle_one(a, b)
@@ -79,17 +79,17 @@ def test_mismatched_seed_sets_are_cut_to_the_common_seeds_and_step(tmp_path):
     # no seed in common: no comparison
     write_metric_runs(tmp_path / "other", "auxss", {7: [1.0]})
     [lonely] = groups_in(tmp_path / "other")
-    assert findings.matched(lonely, b) is None and findings.reach_comparison(lonely, b, "x") is None
+    assert claims.matched(lonely, b) is None and claims.reach_comparison(lonely, b, "x") is None
 
 
 def test_claims_about_one_group_use_the_exact_interval_against_one_half():
-    few = findings.one_group("few escape", 0, 10, few=True)  # [0, 0.31]: below 0.5
-    assert few.verdict == findings.SUPPORTED and few.measured == "0/10 [0.00, 0.31] of the seeds"
+    few = claims.one_group("few escape", 0, 10, few=True)  # [0, 0.31]: below 0.5
+    assert few.verdict == claims.SUPPORTED and few.measured == "0/10 [0.00, 0.31] of the seeds"
     # 0 of 5 gives [0, 0.52]; 0 of 6 gives [0, 0.46], the fewest seeds that decide
-    five = findings.one_group("few escape", 0, 5, few=True)
-    assert five.verdict == findings.UNDECIDED and "6 seeds would place the interval on one side of 0.5" in five.power
-    assert findings.one_group("few escape", 9, 10, few=True).verdict == findings.CONTRADICTED
-    assert findings.one_group("most do", 9, 10, few=False).verdict == findings.SUPPORTED
+    five = claims.one_group("few escape", 0, 5, few=True)
+    assert five.verdict == claims.UNDECIDED and "6 seeds would place the interval on one side of 0.5" in five.power
+    assert claims.one_group("few escape", 9, 10, few=True).verdict == claims.CONTRADICTED
+    assert claims.one_group("most do", 9, 10, few=False).verdict == claims.SUPPORTED
 
 
 def test_check_findings_holm_corrects_across_findings_and_names_what_is_missing(tmp_path):
@@ -100,18 +100,18 @@ def test_check_findings_holm_corrects_across_findings_and_names_what_is_missing(
     groups = groups_in(tmp_path)
     found = {f.number: f for f in findings.check_findings(groups)}
     assert [f.number for f in found.values()] == list(range(1, 9))
-    assert found[1].verdict == findings.SUPPORTED  # no seed exceeds 0.1: 0/10 [0.00, 0.31]
+    assert found[1].verdict == claims.SUPPORTED  # no seed exceeds 0.1: 0/10 [0.00, 0.31]
     # four p-values in the family (finding 2's two and finding 8's two, the latter 1.0): 1.08e-05 x 4
     [tested, not_run] = found[2].parts
-    assert tested.verdict == findings.SUPPORTED and "(Holm 4.33e-05)" in tested.tests
+    assert tested.verdict == claims.SUPPORTED and "(Holm 4.33e-05)" in tested.tests
     # the baselines not run are named, and the finding stands on the one that was
     assert not_run.measured == "hysac (7.5K), jsrl (0.5K), jsrl (7.5K)" and not_run.verdict == findings.NOT_RUN
-    assert found[2].verdict == findings.SUPPORTED
+    assert found[2].verdict == claims.SUPPORTED
     assert found[3].verdict == findings.MISSING and found[3].parts[0].measured == "hysac_auxss (0.5K)"
     assert found[5].verdict == findings.MISSING and "omega_ss (0.5K)" in found[5].measured
     # the variant on seeds 0-4 against AuxSS's seeds 0-4 only: 5 of 5 each, too few seeds to tell
     [ablation] = found[8].parts
-    assert found[8].verdict == findings.UNDECIDED and "seeds 0-4 to step 2,000" in ablation.measured
+    assert found[8].verdict == claims.UNDECIDED and "seeds 0-4 to step 2,000" in ablation.measured
     text = "\n".join(findings_section(groups))
     assert "| 1 | SAC from p0 stays near 0% success within the budget | **supported** |" in text
     assert "the 4 p-values of the 2 comparisons of this table" in text

@@ -20,7 +20,7 @@ pytest.importorskip("rliable", reason="the report needs the plots extra: pip ins
 from conftest import read_only  # noqa: E402
 from rliable import metrics as rliable_metrics  # noqa: E402
 
-from lava_bridge_mj.eval import aggregate, cli, findings, report, report_figures, report_groups  # noqa: E402
+from lava_bridge_mj.eval import aggregate, cli, report, report_figures, report_groups  # noqa: E402
 from lava_bridge_mj.eval.config import METHODS, RunConfig  # noqa: E402
 from lava_bridge_mj.eval.run_files import METRIC_FIELDS  # noqa: E402
 

@@ -77,7 +77,8 @@ def test_results_md_and_the_readme_state_the_verdicts_the_committed_reports_give
 
 def test_results_md_quotes_the_study_question_on_lavabridge_v0_as_the_report_gives_it():
     # each comparison: the pair, the aspect, the effect with its interval and the verdict
-    row = r"^\| (\w+ against \w+) \| (learns faster|more robust) \| .*?([+-]\d\.\d\d \[[+-]\d\.\d\d, [+-]\d\.\d\d\]) \|.* \*\*([^*]+)\*\* \|$"
+    effect = r"[+-]\d\.\d\d \[[+-]\d\.\d\d, [+-]\d\.\d\d\]"
+    row = rf"^\| (\w+ against \w+) \| (learns faster|more robust) \| .*?({effect}) \|.* \*\*([^*]+)\*\* \|$"
     report_text = (ROOT / "docs/report/report.md").read_text()
     report_rows = re.findall(row, report_text[report_text.index("## The study's questions"):], re.MULTILINE)
     results = (ROOT / "docs/results.md").read_text()

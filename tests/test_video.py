@@ -259,7 +259,6 @@ def test_a_still_in_a_new_directory_is_written_with_the_video(tmp_path, capsys):
 def test_ffmpeg_failing_to_write_is_one_line_and_leaves_nothing(tmp_path, capsys):
     """A real ffmpeg that cannot write its output (here: a directory holds the temporary name): one
     line naming the video with ffmpeg's reason, exit 2, no video, no still, ffmpeg's messages not shown."""
-    import os
 
     from lava_bridge_mj.eval import video
 
