@@ -74,11 +74,14 @@ TASK_DOCS: dict[str, str] = {
 }
 """What makes each task hard, in a sentence."""
 
-SUITE: tuple[str, ...] = ("LavaBridge-v0", "LavaBridgeNarrow-v0", "LavaBridgeTwoCrossings-v0")
-"""The tasks the start-distribution study runs on, easy to hard: the reference; the narrow bridge, the
-one maze where Omega-SS's weights are not near uniform; the two crossings, the one task whose
-screening spread two start distributions apart (at 300,000 steps). docs/design.md, section 7, gives
-the measurements behind each variant kept or left out; the others stay registered."""
+SUITE: tuple[str, ...] = ("LavaBridge-v0", "LavaBridgeDecoy-v0", "LavaBridgeFarStart-v0", "LavaBridgeNarrow-v0",
+                          "LavaBridgeTwoCrossings-v0")
+"""The tasks the start-distribution study runs on, easy to hard: the reference; the decoy, where the
+screening put AuxSS ahead of the other three start distributions; the far start, where it put
+GoalDist-SS ahead; the narrow bridge, the one maze where Omega-SS's weights are not near uniform; the
+two crossings, where nothing succeeds from p0 within 100,000 steps and AuxSS pulled away from U-SS by
+300,000. docs/design.md, section 7, gives the measurements behind each variant kept or left out; the
+others stay registered."""
 
 
 def task_layout(env_id: str) -> Layout:
