@@ -85,3 +85,7 @@ def test_results_md_quotes_the_study_question_on_lavabridge_v0_as_the_report_giv
     section = results[results.index("## The study's first question on LavaBridge-v0"):]
     section = section[:section.index("\n## ")]
     assert len(report_rows) == 8 and re.findall(row, section, re.MULTILINE) == report_rows
+    # the README's summary quotes the one interval that leaves little room on one side
+    [quoted] = [effect for pair, aspect, effect, _ in report_rows
+                if (pair, aspect) == ("auxss against goaldist_ss", "learns faster")]
+    assert f"GoalDist-SS on reaching 0.8, {quoted}" in " ".join((ROOT / "README.md").read_text().split())
