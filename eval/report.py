@@ -16,8 +16,10 @@ as PNG and PDF (named TASK_NAME, with one part of report.md per task, when DIR h
                        start state on each demo episode moving back from the goal, then p0
 and report.md, which embeds the PNGs (relative links) with its tables: IQM and 95% CI at the last
 evaluation per group, the steps to p0 success >= 0.8 with how many seeds got there, the reach counts
-with exact intervals and the area under the success curve, and the pairwise tests of `comparison_pairs`
-(eval/statistics.py: exact and rank tests, Holm-corrected, with the power of each). Lines are IQMs
+with exact intervals and the area under the success curve, the pairwise tests of `comparison_pairs`
+(eval/statistics.py: exact and rank tests, Holm-corrected, with the power of each), the paper's findings
+(LavaBridge-v0 only, eval/findings.py) and the study's questions on each task with the start
+distributions' runs (eval/study.py: verdicts with effect sizes and their intervals). Lines are IQMs
 across seeds, bands their 95% stratified-bootstrap CIs (rliable). A figure none of whose methods is in
 DIR is skipped with a line in report.md saying so. For the offline methods (bc, iql) a step is a
 gradient step, not an env step; their legend entries say so.
