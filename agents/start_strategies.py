@@ -128,8 +128,11 @@ class StartStrategy:
         if state.get("num_states") != len(self._states):
             raise ValueError(f"state_dict is for {state.get('num_states')} states, this strategy has {len(self._states)}")
         expected_keys = {"name", "num_states", *self._learned_state()}
-        if set(state) != expected_keys:
-            raise ValueError(f"{self.name} state_dict keys {sorted(state)} differ from {sorted(expected_keys)}")
+        if set(state) != expected_keys:  # written by another version of the strategy: its state means other things
+            missing, extra = sorted(expected_keys - set(state)), sorted(set(state) - expected_keys)
+            raise ValueError(f"{self.name} state_dict lacks {missing or 'nothing'} and has unexpected "
+                             f"{extra or 'nothing'} (expected keys {sorted(expected_keys)}): it was written by another "
+                             f"version of {self.name}, whose state this one cannot continue")
         self._load_learned_state(state)
 
     def _learned_state(self) -> dict[str, Any]:

@@ -367,7 +367,11 @@ class Run:
         if self.guide is not None:
             self.guide.load_seed_states(states)
         for seed_run, state in zip(self.seed_runs, states):
-            seed_run.load(state)
+            try:
+                seed_run.load(state)
+            except ValueError as error:  # a state this code cannot continue, written by another version
+                raise ValueError(f"the checkpoint of {seed_run.dir} at step {self.step} cannot be resumed: {error}; "
+                                 "continue it with the version that wrote it, or start a new run directory") from None
 
 
 def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seeds: Sequence[int] | None = None,

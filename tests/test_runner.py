@@ -20,7 +20,7 @@ from lava_bridge_mj.eval import cli
 from lava_bridge_mj.eval.provenance import git_state
 from lava_bridge_mj.agents.methods import METHODS as METHOD_SPECS
 from lava_bridge_mj.eval.config import METHODS, RunConfig
-from lava_bridge_mj.eval.run_files import EPISODE_FIELDS, METRIC_FIELDS, RunDirectoryError, run_status
+from lava_bridge_mj.eval.run_files import EPISODE_FIELDS, METRIC_FIELDS, RunDirectoryError, run_status, save_torch
 from lava_bridge_mj.eval.runner import Run, train
 
 TINY_SAC = SACConfig(hidden_sizes=(16, 16), batch_size=32, buffer_size=500, learning_starts=100)
@@ -215,6 +215,25 @@ def test_a_resume_refuses_to_change_the_start_strategy_a_run_began_with(trained,
     (out / "provenance.json").write_text(json.dumps(sessions))
     train(dataclasses.replace(config, steps=400), out, resume=True, progress=False)
     assert json.loads((out / "config.json").read_text())["steps"] == 400
+
+
+def test_a_checkpoint_whose_start_strategy_state_this_code_cannot_continue_is_named_and_left_intact(trained, tmp_path):
+    # as if the checkpoints were written by a GoalDist-SS that did not yet count steps
+    config = tiny_config("goaldist_ss", steps=300)
+    out = copy_run(trained(config)[0], tmp_path / "run")
+    for name in ("checkpoint.pt", "checkpoint.prev.pt"):
+        state = torch.load(out / name, weights_only=False)
+        del state["wrapper"]["strategy"]["steps"]
+        save_torch(out / name, state)
+    (out / "final.pt").unlink()
+    def files():  # the run's files, not the lock every writer takes (kept by design)
+        return {path.name: path.read_bytes() for path in out.iterdir() if path.is_file() and path.name != ".lock"}
+
+    before = files()
+    with pytest.raises(ValueError, match=rf"checkpoint of {out} at step 300 cannot be resumed: goaldist_ss state_dict "
+                                         r"lacks \['steps'\].*another version of goaldist_ss"):
+        train(dataclasses.replace(config, steps=400), out, resume=True, progress=False)
+    assert files() == before
 
 
 def test_provenance_records_each_training_session_with_the_strategy_settings(trained, tmp_path):
