@@ -63,7 +63,7 @@ class Answer:
     b: str
     aspect: str
     part: Part | None
-    """The findings' tested statement; None when a group is not run or the two share no seed."""
+    """The tested claim (eval/claims.py); None when a group is not run or the two share no seed."""
     effect: stats.RateDifference | None
     """Rate of A minus rate of B of the outcome behind Fisher's test, with its 95% interval."""
     absent: str = NOT_RUN
