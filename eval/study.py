@@ -34,6 +34,7 @@ whose groups are not both present is reported as not run.
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 
 from lava_bridge_mj.eval import statistics as stats
@@ -86,10 +87,8 @@ class Question:
     @property
     def summary(self) -> str:
         """How many comparisons give each verdict, most frequent first: '3 auxss ahead, 5 not enough ...'."""
-        counts: dict[str, int] = {}
-        for answer in self.answers:
-            counts[answer.verdict] = counts.get(answer.verdict, 0) + 1
-        return ", ".join(f"{n} {verdict}" for verdict, n in sorted(counts.items(), key=lambda kv: -kv[1]))
+        counts = collections.Counter(answer.verdict for answer in self.answers)  # ties: first seen first
+        return ", ".join(f"{n} {verdict}" for verdict, n in counts.most_common())
 
 
 def answer_questions(groups: list[Group]) -> list[Question]:
@@ -107,7 +106,7 @@ def answer_questions(groups: list[Group]) -> list[Question]:
                 item = comparison(ga, gb, f"{a} {aspect} than {b}") if ga and gb else None
                 drafts.append((a, b, aspect, item, NO_COMMON_SEEDS if ga and gb else NOT_RUN))
                 pending += [item] if item is not None else []
-        if not any(absent == NO_COMMON_SEEDS or item for *_, item, absent in drafts):
+        if all(absent == NOT_RUN for *_, absent in drafts):
             continue
         settled = iter(settle(pending))  # one Holm family per question
         answers = [Answer(a, b, aspect, next(settled) if item else None,
