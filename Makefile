@@ -43,18 +43,23 @@ bench: setup
 # The start-distribution study: SAC, the five demo start distributions and HySAC+AuxSS on every task of
 # lava_bridge_mj.SUITE, evaluation seeds 0-19 (the tuning seeds, 100 and up, never), as one-thread jobs of
 # 10 seeds, two at a time; the two crossings at the paper's 300,000 steps, where 100,000 solve nothing.
-# The tasks whose screening spread the start distributions at 100,000 steps come first (the decoy, the far
-# start), then the two crossings, then the narrow bridge and LavaBridge-v0. About 32 hours on the 2-core
-# machine at its measured 849 seed-steps/s: stop it at any moment and run it again to continue. Finished
-# runs are then copied to results/study (lava-bridge-bench export).
-STUDY_METHODS := auxss,uniform_ss,omega_ss,goaldist_ss,reverse_ss,sac,hysac_auxss
+# The start distributions, which the study's questions compare, train first, task by task: the tasks whose
+# screening spread them at 100,000 steps (the decoy, the far start), then the two crossings, then the narrow
+# bridge and LavaBridge-v0; the baselines (SAC, HySAC+AuxSS) last. About 32 hours on the 2-core machine at
+# its measured 849 seed-steps/s: stop it at any moment and run it again to continue. Finished runs are then
+# copied to results/study (lava-bridge-bench export).
+STUDY_STARTS := auxss,uniform_ss,omega_ss,goaldist_ss,reverse_ss
+STUDY_BASELINES := sac,hysac_auxss
 STUDY_SEEDS := 0-19
-STUDY_SWEEP := $(BIN)/lava-bridge-bench sweep --methods $(STUDY_METHODS) --seeds $(STUDY_SEEDS) --eval-every 10000 \
+STUDY_SWEEP := $(BIN)/lava-bridge-bench sweep --seeds $(STUDY_SEEDS) --eval-every 10000 \
     --seeds-per-job 10 --workers 2 --threads 1 --out runs/study
 study: setup
-	$(STUDY_SWEEP) --envs LavaBridgeDecoy-v0,LavaBridgeFarStart-v0 --steps 100000
-	$(STUDY_SWEEP) --envs LavaBridgeTwoCrossings-v0 --steps 300000
-	$(STUDY_SWEEP) --envs LavaBridgeNarrow-v0,LavaBridge-v0 --steps 100000
+	$(STUDY_SWEEP) --methods $(STUDY_STARTS) --envs LavaBridgeDecoy-v0,LavaBridgeFarStart-v0 --steps 100000
+	$(STUDY_SWEEP) --methods $(STUDY_STARTS) --envs LavaBridgeTwoCrossings-v0 --steps 300000
+	$(STUDY_SWEEP) --methods $(STUDY_STARTS) --envs LavaBridgeNarrow-v0,LavaBridge-v0 --steps 100000
+	$(STUDY_SWEEP) --methods $(STUDY_BASELINES) \
+	    --envs LavaBridgeDecoy-v0,LavaBridgeFarStart-v0,LavaBridgeNarrow-v0,LavaBridge-v0 --steps 100000
+	$(STUDY_SWEEP) --methods $(STUDY_BASELINES) --envs LavaBridgeTwoCrossings-v0 --steps 300000
 	$(BIN)/lava-bridge-bench export runs/study results/study
 
 # docs/results.md's tables and figures, regenerated from the committed metrics in results/ (no training):

@@ -22,10 +22,17 @@ import pytest  # noqa: E402
 
 
 def makefile_recipe(target):
-    """The command lines of the Makefile's `target`, continuation lines joined: the Makefile is the
-    one place the project's commands live, and tests read them from there."""
+    """The command lines of the Makefile's `target`, continuation lines joined and the Makefile's own
+    `NAME := value` variables substituted as make would (others, such as $(MAKE), are left as they are):
+    the Makefile is the one place the project's commands live, and tests read them from there."""
     makefile = (Path(__file__).resolve().parent.parent / "Makefile").read_text().replace("\\\n", " ")
-    return re.search(rf"^{target}:.*\n((?:\t.*\n)+)", makefile, re.MULTILINE).group(1).splitlines()
+    variables = dict(re.findall(r"^(\w+) := (.*)$", makefile, re.MULTILINE))
+
+    def expand(text):
+        return re.sub(r"\$\((\w+)\)", lambda m: expand(variables[m[1]]) if m[1] in variables else m[0], text)
+
+    lines = re.search(rf"^{target}:.*\n((?:\t.*\n)+)", makefile, re.MULTILINE).group(1).splitlines()
+    return [expand(line) for line in lines]
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -8,6 +8,7 @@ tests/test_vector_env.py; this file holds what is specific to the suite.
 from __future__ import annotations
 
 import json
+import shlex
 import types
 from importlib import resources
 
@@ -21,6 +22,7 @@ import lava_bridge_mj
 from lava_bridge_mj import (TASKS, Layout, LavaBridgeEnv, LavaBridgeVectorEnv, ScriptedExpert, load_demos, pictures,
                             task_layout)
 from lava_bridge_mj.demos import MANIFEST, SHIPPED_SEEDS, SHIPPED_SIZES, content_hash, demo_file, generate_demos
+from lava_bridge_mj.eval import report_groups
 from lava_bridge_mj.layout import Box2D, _uncovered
 from lava_bridge_mj.mjcf import VIEW_ASPECT
 from lava_bridge_mj.tasks import TASK_DOCS, placed_layout
@@ -41,11 +43,18 @@ def test_suite_starts_with_the_unchanged_reference_task():
         assert env_id.startswith("LavaBridge") and env_id.endswith("-v0"), env_id
 
 
-def test_the_study_runs_on_every_task_of_the_suite_and_on_no_other():
+def test_the_study_trains_every_method_once_on_every_task_of_the_suite_and_on_no_other():
     # the Makefile's study target is the one place its commands live; SUITE names its tasks for Python
-    envs = [env for line in makefile_recipe("study") if "--envs" in line
-            for env in line.split("--envs ", 1)[1].split()[0].split(",")]
-    assert sorted(envs) == sorted(lava_bridge_mj.SUITE) and len(envs) == len(set(envs))
+    sweeps = [shlex.split(line.split("lava-bridge-bench sweep", 1)[1]) for line in makefile_recipe("study")
+              if "lava-bridge-bench sweep" in line]
+    cells = [(env, method, argv[argv.index("--steps") + 1]) for argv in sweeps
+             for env in argv[argv.index("--envs") + 1].split(",") for method in argv[argv.index("--methods") + 1].split(",")]
+    assert len(cells) == len(set(cells))
+    methods = {method for _, method, _ in cells}
+    assert methods == set(report_groups.START_STUDY) | {"sac", "hysac_auxss"}
+    # every method on every task, at one budget per task: the paper's 300,000 steps on the two crossings only
+    steps = {env: "300000" if env == "LavaBridgeTwoCrossings-v0" else "100000" for env in lava_bridge_mj.SUITE}
+    assert sorted(cells) == sorted((env, method, steps[env]) for env in lava_bridge_mj.SUITE for method in methods)
     assert lava_bridge_mj.SUITE[0] == "LavaBridge-v0" and set(lava_bridge_mj.SUITE) <= set(TASKS)
 
 
