@@ -75,17 +75,50 @@ def test_results_md_and_the_readme_state_the_verdicts_the_committed_reports_give
     assert findings_verdicts(readme, rf"^\| (\d) \| [^|]+ \| ({verdicts})\b") == expected, "README findings table"
 
 
+# one comparison of the study's questions: the pair, the aspect, the effect with its interval ("-" where the
+# pair was not run) and the verdict
+STUDY_ROW = (r"^\| (\w+ against \w+) \| (learns faster|more robust) \| "
+             r".*?([+-]\d\.\d\d \[[+-]\d\.\d\d, [+-]\d\.\d\d\]|-) \|.* \*\*([^*]+)\*\* \|$")
+
+
+def section(text, heading):
+    """The part of markdown `text` from the line `heading` to the next heading of the same level or higher."""
+    body = text.index(f"\n{heading}\n") + len(heading) + 2
+    level = heading.split(" ", 1)[0]
+    end = re.search(rf"^#{{1,{len(level)}}} ", text[body:], re.MULTILINE)
+    return text[body:body + end.start()] if end else text[body:]
+
+
+def task_sections(text, level):
+    """Task id -> the part of `text` under its heading at `level` ("##" or "###")."""
+    parts = re.split(rf"^{level} (LavaBridge\w*-v0)\n", text, flags=re.MULTILINE)
+    return dict(zip(parts[1::2], parts[2::2]))
+
+
+def study_rows(report_text):
+    """Task id -> the comparison rows of its section "The study's questions", in a report on one task or
+    on several (a task's section then holds its own)."""
+    one_task = re.match(r"# (LavaBridge\w*-v0) report", report_text)
+    tasks = {one_task[1]: report_text} if one_task else task_sections(report_text, "##")
+    return {task: re.findall(STUDY_ROW, text[text.index("# The study's questions"):], re.MULTILINE)
+            for task, text in tasks.items() if "# The study's questions" in text}
+
+
 def test_results_md_quotes_the_study_question_on_lavabridge_v0_as_the_report_gives_it():
-    # each comparison: the pair, the aspect, the effect with its interval and the verdict
-    effect = r"[+-]\d\.\d\d \[[+-]\d\.\d\d, [+-]\d\.\d\d\]"
-    row = rf"^\| (\w+ against \w+) \| (learns faster|more robust) \| .*?({effect}) \|.* \*\*([^*]+)\*\* \|$"
-    report_text = (ROOT / "docs/report/report.md").read_text()
-    report_rows = re.findall(row, report_text[report_text.index("## The study's questions"):], re.MULTILINE)
+    report_rows = study_rows((ROOT / "docs/report/report.md").read_text())["LavaBridge-v0"]
     results = (ROOT / "docs/results.md").read_text()
-    section = results[results.index("## The study's first question on LavaBridge-v0"):]
-    section = section[:section.index("\n## ")]
-    assert len(report_rows) == 8 and re.findall(row, section, re.MULTILINE) == report_rows
+    quoted = section(results, "## The study's first question on LavaBridge-v0: do safety-derived starts beat "
+                              "undirected ones?")
+    assert len(report_rows) == 8 and re.findall(STUDY_ROW, quoted, re.MULTILINE) == report_rows
     # the README's summary quotes the one interval that leaves little room on one side
     [quoted] = [effect for pair, aspect, effect, _ in report_rows
                 if (pair, aspect) == ("auxss against goaldist_ss", "learns faster")]
     assert f"GoalDist-SS on reaching 0.8, {quoted}" in " ".join((ROOT / "README.md").read_text().split())
+
+
+def test_every_folder_of_results_is_described_in_its_readme():
+    # results/README.md says how each folder's runs were made and by which commit; a folder it does not
+    # name would be metrics without a command
+    first_column = re.findall(r"^\| ([^|]+) \|", (ROOT / "results/README.md").read_text(), re.MULTILINE)
+    described = {name.split("/")[0] for cell in first_column for name in re.findall(r"`([\w/]+)/`", cell)}
+    assert {path.name for path in (ROOT / "results").iterdir() if path.is_dir()} <= described
