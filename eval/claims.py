@@ -211,10 +211,13 @@ def power_text(counts: tuple[int, int, int, int]) -> tuple[float, str]:
     return power, text
 
 
-def settle(pending: list[Pending]) -> list[Part]:
-    """The verdicts of the comparisons, their p-values Holm-corrected as one family."""
+def settle(pending: list[Pending], untested: int = 0) -> list[Part]:
+    """The verdicts of the comparisons, their p-values Holm-corrected as one family. `untested` p-values
+    of the family are not computed yet (comparisons whose runs are still to come): each counts as 1, so
+    the correction is over the whole family, and as Holm's adjusted p-values never rise when another
+    p-value falls, a rejection made now stands once they are computed."""
     raw = [p for c in pending for p in c.p.values()]
-    adjusted = iter(stats.holm(raw))
+    adjusted = iter(stats.holm(raw + [1.0] * untested))
     parts = []
     for c in pending:
         tests, rejected = [], set()

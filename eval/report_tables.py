@@ -55,9 +55,9 @@ def last_evaluation_table(groups: list[Group], curves: dict[str, dict[str, Curve
 
 
 def late_table(groups: list[Group], reps: int) -> list[str]:
-    lines = [f"Each seed's mean over its evaluations in the last third of the group's steps (past two thirds of "
-             f"the last one), then the IQM [95% CI] across seeds: where a group ended up, without the swing of a "
-             f"single evaluation.", "",
+    lines = ["Each seed's mean over its evaluations in the last third of the group's steps (past two thirds of "
+             "the last one), then the IQM [95% CI] across seeds: where a group ended up, without the swing of a "
+             "single evaluation.", "",
              "| group | seeds | evaluations (steps) | success from p0 | success from ood |", "|---|---:|---|---:|---:|"]
     for g in groups:
         late = late_means(g, ("success_p0", "success_ood"), reps=reps)
@@ -185,7 +185,8 @@ def study_section(groups: list[Group], heading: str = "##") -> list[str]:
              f"each up to the last step both have), *learns faster* by Fisher's exact test on the seeds reaching "
              f"{THRESHOLD:g} and the rank test on the steps to it, *more robust* by Fisher's exact test on the "
              f"seeds whose late-window success from ood is at least {ROBUST:g} and the permutation test on that "
-             f"success. Two-sided p-values, Holm-corrected as one family per question, reject at {ALPHA:g}. "
+             f"success. Two-sided p-values, Holm-corrected as one family per question (a comparison not run yet "
+             f"counts its p-values as 1, so a verdict stands when its runs arrive), reject at {ALPHA:g}. "
              f"The effect is A's rate minus B's of the outcome behind Fisher's test, with Newcombe's 95% "
              f"interval; it describes the size, the tests decide (Fisher's test conditions on the total and is "
              f"the more conservative, so at a few seeds the interval can leave 0 out while no test rejects). "

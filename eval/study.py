@@ -21,7 +21,9 @@ rejects with A ahead and none with B ahead, B ahead the other way round; when no
 difference found* if Fisher's test has at least 80% power to detect a difference of 0.3 in the rate
 with these seeds, else *not enough seeds to decide* with the seeds per group that would give 80%. The
 p-values of one question on one task form one Holm family (eight comparisons, 16 p-values, for the
-first question; two and four for the second); tasks are separate questions.
+first question; two and four for the second); tasks are separate questions. The family is the whole
+question even while some of its groups are still training: a comparison not made yet counts its p-values
+as 1 (`claims.settle`), so a verdict given on a partly trained study stands when the rest arrives.
 
 Beside each verdict stands the effect: the rate of A minus the rate of B of the binary outcome behind
 Fisher's test (seeds reaching 0.8, or robust seeds), with Newcombe's 95% interval
@@ -53,6 +55,8 @@ QUESTIONS = (
 )
 """Each question and the (A, B) pairs that answer it, A the side the question asks about."""
 ASPECTS = (("learns faster", reach_comparison), ("more robust", robust_comparison))
+TESTS_PER_COMPARISON = 2
+"""Each aspect's comparison makes two tests (a count test and a rank or permutation test)."""
 NO_COMMON_SEEDS = "no seed in common"
 
 
@@ -108,7 +112,8 @@ def answer_questions(groups: list[Group]) -> list[Question]:
                 pending += [item] if item is not None else []
         if all(absent == NOT_RUN for *_, absent in drafts):
             continue
-        settled = iter(settle(pending))  # one Holm family per question
+        # one Holm family per question, the comparisons not made counted in it
+        settled = iter(settle(pending, untested=TESTS_PER_COMPARISON * (len(drafts) - len(pending))))
         answers = [Answer(a, b, aspect, next(settled) if item else None,
                           stats.rate_difference(*item.counts) if item else None, absent)
                    for a, b, aspect, item, absent in drafts]

@@ -37,19 +37,37 @@ def test_a_clear_win_is_answered_with_holm_over_the_question_and_newcombes_inter
     faster, robust = [a for a in question.answers if a.part is not None]
     assert (faster.a, faster.b, faster.aspect, robust.aspect) == ("auxss", "uniform_ss", "learns faster", "more robust")
     assert faster.verdict == robust.verdict == "auxss ahead"
-    # the family is the four p-values of the two comparisons made: 1.08e-05 twice and 0.0002 twice;
-    # Holm: 1.08e-05 x 4 = 4.33e-05 (the second 1.08e-05 x 3 is raised to it), 0.0002 x 2 = 0.0004
-    assert faster.part.tests == ("Fisher's test on reach counts p = 1.08e-05 (Holm 4.33e-05); "
-                                 "rank test on steps to 0.8 p = 0.0002 (Holm 0.0004)")
-    assert robust.part.tests == ("Fisher's test on robust-seed counts p = 1.08e-05 (Holm 4.33e-05); "
-                                 "permutation test on late ood success p = 0.0002 (Holm 0.0004)")
-    assert FISHER_ALL_AGAINST_NONE * 4 == pytest.approx(4.33e-05, rel=1e-3)
+    # the family is the whole question's 16 p-values: the two comparisons made give 1.08e-05 twice and
+    # 0.0002 twice, the six not run count 1 each; Holm: 1.08e-05 x 16 = 1.73e-04 (the second, x 15, is
+    # raised to it), 0.0002 x 14 = 0.0028 (the second, x 13, raised to it)
+    assert faster.part.tests == ("Fisher's test on reach counts p = 1.08e-05 (Holm 0.000173); "
+                                 "rank test on steps to 0.8 p = 0.0002 (Holm 0.0028)")
+    assert robust.part.tests == ("Fisher's test on robust-seed counts p = 1.08e-05 (Holm 0.000173); "
+                                 "permutation test on late ood success p = 0.0002 (Holm 0.0028)")
+    assert FISHER_ALL_AGAINST_NONE * 16 == pytest.approx(1.732e-04, rel=1e-3)
     # all against none: +1 with Newcombe's lower bound 1 - hypot(0.2775, 0.2775) = 0.61 (test_statistics)
     for answer in (faster, robust):
         assert answer.effect.difference == 1 and answer.effect.low == pytest.approx(0.6075, abs=1e-4)
     absent = [a for a in question.answers if a.part is None]
     assert len(absent) == 6 and {a.verdict for a in absent} == {"not run"}
     assert question.summary == "6 not run, 2 auxss ahead"
+
+
+def test_a_verdict_on_a_partly_trained_study_stands_when_the_other_groups_arrive(tmp_path):
+    # AuxSS 7 of 10 against U-SS 0 of 10: Fisher's p = 0.0031 (scipy). Alone in the family of 16 it is
+    # multiplied by 16 (0.0495, the rank test's p is smaller): a rejection. The other groups then arrive,
+    # tying each other; the family's other p-values fall from 1, and the rejection stands.
+    auxss = {s: [0.0, 1.0] if s < 7 else [0.0, 0.0] for s in range(10)}
+    before = safety_question(answers(tmp_path, {"auxss": auxss, "uniform_ss": FAILED})).answers[0]
+    after = safety_question(answers(tmp_path, {"omega_ss": FAILED, "goaldist_ss": FAILED})).answers[0]
+    assert (before.a, before.b, before.aspect) == (after.a, after.b, after.aspect) == ("auxss", "uniform_ss",
+                                                                                        "learns faster")
+    assert "Fisher's test on reach counts p = 0.0031 (Holm 0.0495)" in before.part.tests
+    assert before.verdict == after.verdict == "auxss ahead"
+    assert all(a.part is not None for a in safety_question(answers(tmp_path, {})).answers)
+    # each comparison makes the number of tests the family counts for one not made
+    assert all(len(a.part.tests.split("; ")) == study.TESTS_PER_COMPARISON
+               for a in safety_question(answers(tmp_path, {})).answers)
 
 
 def test_the_reverse_curriculum_ahead_is_said_so_and_its_question_is_a_family_of_its_own(tmp_path):
