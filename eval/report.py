@@ -129,21 +129,28 @@ def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dic
     tasks = list(dict.fromkeys(g.task for g in groups))
     title = f"{tasks[0]} report" if len(tasks) == 1 else f"Report on {len(tasks)} tasks ({', '.join(tasks)})"
     lines = [f"# {title}: {where}" + (f", {selection}" if selection else ""), "",
-             f"{sum(len(g.runs) for g in groups)} runs in {len(groups)} groups (one configuration each; "
-             f"eval/aggregate.py says how runs are grouped). Lines and table entries are interquartile means "
-             f"(IQM) across seeds; bands and brackets are 95% stratified-bootstrap confidence intervals (rliable, "
-             f"{reps:,} resamples, bootstrap seed {BOOTSTRAP_SEED}). Curves use the evaluation steps that every "
-             f"seed of a group has. For bc and iql a step is a gradient step on the demos.", "",
+             f"{counted(sum(len(g.runs) for g in groups), 'run')} in {counted(len(groups), 'group')} "
+             f"(one configuration each; eval/aggregate.py says how runs are grouped). Lines and table entries "
+             f"are interquartile means (IQM) across seeds; bands and brackets are 95% stratified-bootstrap "
+             f"confidence intervals (rliable, {reps:,} resamples, bootstrap seed {BOOTSTRAP_SEED}). Curves use "
+             f"the evaluation steps that every seed of a group has. For bc and iql a step is a gradient step on "
+             f"the demos.", "",
              *runs_table(groups)]
     for task in tasks:
         mine = [g for g in groups if g.task == task]
         if len(tasks) == 1:
             lines.extend(_task_sections(mine, curves, threshold, reps, where, out, warnings, "##", ""))
         else:
-            lines.extend(["", f"## {task}", "", f"{sum(len(g.runs) for g in mine)} runs in {len(mine)} groups."])
+            lines.extend(["", f"## {task}", "",
+                          f"{counted(sum(len(g.runs) for g in mine), 'run')} in {counted(len(mine), 'group')}."])
             lines.extend(_task_sections(mine, curves, threshold, reps, where, out, warnings, "###", f"{task}_"))
     atomic_write_text(out / "report.md", "\n".join(lines) + "\n")
     return warnings
+
+
+def counted(number: int, noun: str) -> str:
+    """"1 group", "3 groups"."""
+    return f"{number} {noun}{'' if number == 1 else 's'}"
 
 
 MAZE_STRATEGIES = {"auxss": "AuxSS", "reverse_ss": "reverse_ss"}

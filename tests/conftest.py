@@ -14,6 +14,7 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 import contextlib  # noqa: E402
 import csv  # noqa: E402
 import re  # noqa: E402
+import shlex  # noqa: E402
 import shutil  # noqa: E402
 import subprocess  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -34,6 +35,13 @@ def makefile_recipe(target):
     lines = re.search(rf"^{target}:.*\n((?:\t.*\n)+)", makefile, re.MULTILINE).group(1).splitlines()
     return [expand(line) for line in lines]
 
+
+
+def makefile_sweeps(target):
+    """The options of each `lava-bridge-bench sweep` line of the Makefile's `target`: {"--envs": ..., ...}."""
+    sweeps = [shlex.split(line.split("lava-bridge-bench sweep", 1)[1]) for line in makefile_recipe(target)
+              if "lava-bridge-bench sweep" in line]
+    return [dict(zip(argv[::2], argv[1::2])) for argv in sweeps]
 
 @pytest.fixture(scope="session", autouse=True)
 def one_torch_thread():

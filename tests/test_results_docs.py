@@ -8,7 +8,9 @@ import shlex
 from pathlib import Path
 
 import pytest
-from conftest import makefile_recipe
+
+import lava_bridge_mj
+from conftest import makefile_recipe, makefile_sweeps
 
 pytest.importorskip("rliable", reason="the report needs the plots extra: pip install -e '.[plots]'")
 
@@ -29,7 +31,7 @@ COMMANDS = make_report_commands()
 def test_the_report_target_makes_every_committed_report():
     assert [argv[argv.index("--out") + 1] for argv in COMMANDS] == [
         "docs/report", "docs/report_300k", "docs/report_ablations", "docs/report_calibration",
-        "docs/report_calibration_confirm", "docs/report_screening", "docs/report_screening_300k"]
+        "docs/report_calibration_confirm", "docs/report_screening", "docs/report_screening_300k", "docs/report_study"]
 
 
 @pytest.mark.parametrize("argv", COMMANDS, ids=[argv[argv.index("--out") + 1] for argv in COMMANDS])
@@ -95,13 +97,16 @@ def task_sections(text, level):
     return dict(zip(parts[1::2], parts[2::2]))
 
 
-def study_rows(report_text):
-    """Task id -> the comparison rows of its section "The study's questions", in a report on one task or
-    on several (a task's section then holds its own)."""
+def report_parts(report_text):
+    """Task id -> its part of a report: the whole report on one task, a task's section of one on several."""
     one_task = re.match(r"# (LavaBridge\w*-v0) report", report_text)
-    tasks = {one_task[1]: report_text} if one_task else task_sections(report_text, "##")
+    return {one_task[1]: report_text} if one_task else task_sections(report_text, "##")
+
+
+def study_rows(report_text):
+    """Task id -> the comparison rows of its section "The study's questions" in a report."""
     return {task: re.findall(STUDY_ROW, text[text.index("# The study's questions"):], re.MULTILINE)
-            for task, text in tasks.items() if "# The study's questions" in text}
+            for task, text in report_parts(report_text).items() if "# The study's questions" in text}
 
 
 def test_results_md_quotes_the_study_question_on_lavabridge_v0_as_the_report_gives_it():
@@ -116,9 +121,56 @@ def test_results_md_quotes_the_study_question_on_lavabridge_v0_as_the_report_giv
     assert f"GoalDist-SS on reaching 0.8, {quoted}" in " ".join((ROOT / "README.md").read_text().split())
 
 
+
+def test_results_md_answers_the_study_per_task_as_the_study_report_gives_it():
+    # every task the study report answers a question on is quoted in its own subsection, row for row;
+    # a task of the suite it does not answer yet is named, never left out
+    report_text = (ROOT / "docs/report_study/report.md").read_text()
+    reported = study_rows(report_text)
+    quoted = section((ROOT / "docs/results.md").read_text(), "## The study on the task suite")
+    answered = task_sections(quoted, "###")
+    assert {task: re.findall(STUDY_ROW, text, re.MULTILINE) for task, text in answered.items()} == reported
+    for task in set(lava_bridge_mj.SUITE) - set(reported):
+        assert f"`{task}`" in quoted, f"docs/results.md's study section does not say {task} is still to run"
+    # and every count (18/20) and decimal (0.0136) its prose quotes is in the report's part on that task
+    for task, text in answered.items():
+        prose = "\n".join(line for line in text.splitlines() if not line.startswith("|"))
+        assert_quoted_from(prose, report_parts(report_text)[task], f"docs/results.md on {task}")
+    # so is every number of the README's paragraph on the study
+    readme = (ROOT / "README.md").read_text()
+    paragraph = readme[readme.index("**The study on the task suite**"):]
+    assert_quoted_from(paragraph[:paragraph.index("\n\n")], report_text, "the README's study paragraph")
+
+
+def assert_quoted_from(prose, report_text, where):
+    """Every count (18/20) and decimal (0.0136) in `prose` is in `report_text`."""
+    for number in re.findall(r"\d+/\d+|\d\.\d+", prose):
+        assert number in report_text, f"{where} quotes {number}; the report does not"
+
+
+def test_results_md_says_which_of_the_studys_runs_are_finished_as_results_study_holds_them():
+    # each task of the suite: its budget as `make study` trains it, the methods with all their seeds in
+    # results/study, and the rest of the study's methods still to run
+    sweeps = makefile_sweeps("study")
+    first, last = map(int, sweeps[0]["--seeds"].split("-"))
+    planned = {}  # task -> (steps, methods)
+    for sweep in sweeps:
+        for task in sweep["--envs"].split(","):
+            planned.setdefault(task, (int(sweep["--steps"]), []))[1].extend(sweep["--methods"].split(","))
+    rows = re.findall(r"^\| `(LavaBridge\w*-v0)` \| ([\d,]+) \| ([^|]+) \| ([^|]+) \|$",
+                      section((ROOT / "docs/results.md").read_text(), "## The study on the task suite"), re.MULTILINE)
+    assert {task for task, *_ in rows} == set(lava_bridge_mj.SUITE) == set(planned)
+    for task, steps, finished, still in rows:
+        names = {"finished": set(finished.split(", ")) - {"-"}, "still": set(still.split(", ")) - {"-"}}
+        complete = {method for method in planned[task][1]
+                    if all((ROOT / "results/study" / task / f"{method}-d500" / f"seed{seed}" / "metrics.csv").is_file()
+                           for seed in range(first, last + 1))}
+        assert int(steps.replace(",", "")) == planned[task][0], task
+        assert names["finished"] == complete and names["still"] == set(planned[task][1]) - complete, task
+
 def test_every_folder_of_results_is_described_in_its_readme():
     # results/README.md says how each folder's runs were made and by which commit; a folder it does not
     # name would be metrics without a command
     first_column = re.findall(r"^\| ([^|]+) \|", (ROOT / "results/README.md").read_text(), re.MULTILINE)
-    described = {name.split("/")[0] for cell in first_column for name in re.findall(r"`([\w/]+)/`", cell)}
+    described = {name.split("/")[0] for cell in first_column for name in re.findall(r"`([\w/.-]+)/`", cell)}
     assert {path.name for path in (ROOT / "results").iterdir() if path.is_dir()} <= described

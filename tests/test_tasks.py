@@ -8,7 +8,6 @@ tests/test_vector_env.py; this file holds what is specific to the suite.
 from __future__ import annotations
 
 import json
-import shlex
 import types
 from importlib import resources
 
@@ -26,7 +25,7 @@ from lava_bridge_mj.eval import report_groups
 from lava_bridge_mj.layout import Box2D, _uncovered
 from lava_bridge_mj.mjcf import VIEW_ASPECT
 from lava_bridge_mj.tasks import TASK_DOCS, placed_layout
-from conftest import makefile_recipe
+from conftest import makefile_sweeps
 from test_env import needs_gl
 
 TASK_IDS = list(TASKS)
@@ -45,10 +44,8 @@ def test_suite_starts_with_the_unchanged_reference_task():
 
 def test_the_study_trains_every_method_once_on_every_task_of_the_suite_and_on_no_other():
     # the Makefile's study target is the one place its commands live; SUITE names its tasks for Python
-    sweeps = [shlex.split(line.split("lava-bridge-bench sweep", 1)[1]) for line in makefile_recipe("study")
-              if "lava-bridge-bench sweep" in line]
-    cells = [(env, method, argv[argv.index("--steps") + 1]) for argv in sweeps
-             for env in argv[argv.index("--envs") + 1].split(",") for method in argv[argv.index("--methods") + 1].split(",")]
+    cells = [(env, method, sweep["--steps"]) for sweep in makefile_sweeps("study")
+             for env in sweep["--envs"].split(",") for method in sweep["--methods"].split(",")]
     assert len(cells) == len(set(cells))
     methods = {method for _, method, _ in cells}
     assert methods == set(report_groups.START_STUDY) | {"sac", "hysac_auxss"}
