@@ -121,7 +121,6 @@ def test_results_md_quotes_the_study_question_on_lavabridge_v0_as_the_report_giv
     assert f"GoalDist-SS on reaching 0.8, {quoted}" in " ".join((ROOT / "README.md").read_text().split())
 
 
-
 def test_results_md_answers_the_study_per_task_as_the_study_report_gives_it():
     # every task the study report answers a question on is quoted in its own subsection, row for row;
     # a task of the suite it does not answer yet is named, never left out
@@ -167,6 +166,7 @@ def test_results_md_says_which_of_the_studys_runs_are_finished_as_results_study_
                            for seed in range(first, last + 1))}
         assert int(steps.replace(",", "")) == planned[task][0], task
         assert names["finished"] == complete and names["still"] == set(planned[task][1]) - complete, task
+
 
 def test_every_folder_of_results_is_described_in_its_readme():
     # results/README.md says how each folder's runs were made and by which commit; a folder it does not
