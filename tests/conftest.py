@@ -37,11 +37,15 @@ def makefile_recipe(target):
 
 
 
+def makefile_commands(target, subcommand):
+    """The argument lists of the `lava-bridge-bench SUBCOMMAND` lines of the Makefile's `target`."""
+    prefix = f"lava-bridge-bench {subcommand} "
+    return [shlex.split(line.split(prefix, 1)[1]) for line in makefile_recipe(target) if prefix in line]
+
+
 def makefile_sweeps(target):
     """The options of each `lava-bridge-bench sweep` line of the Makefile's `target`: {"--envs": ..., ...}."""
-    sweeps = [shlex.split(line.split("lava-bridge-bench sweep", 1)[1]) for line in makefile_recipe(target)
-              if "lava-bridge-bench sweep" in line]
-    return [dict(zip(argv[::2], argv[1::2])) for argv in sweeps]
+    return [dict(zip(argv[::2], argv[1::2])) for argv in makefile_commands(target, "sweep")]
 
 @pytest.fixture(scope="session", autouse=True)
 def one_torch_thread():

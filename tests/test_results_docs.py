@@ -4,13 +4,12 @@ a hand-edited table fails here. The commands are read from the Makefile, the one
 
 import importlib.util
 import re
-import shlex
 from pathlib import Path
 
 import pytest
 
 import lava_bridge_mj
-from conftest import makefile_recipe, makefile_sweeps
+from conftest import makefile_commands, makefile_sweeps
 
 pytest.importorskip("rliable", reason="the report needs the plots extra: pip install -e '.[plots]'")
 
@@ -19,13 +18,8 @@ from lava_bridge_mj.eval import report  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def make_report_commands():
-    """The argument lists of the `lava-bridge-bench report` lines of the Makefile's report target."""
-    return [shlex.split(line.split("lava-bridge-bench report", 1)[1]) for line in makefile_recipe("report")
-            if "lava-bridge-bench report" in line]
-
-
-COMMANDS = make_report_commands()
+COMMANDS = makefile_commands("report", "report")
+"""The argument lists of the `lava-bridge-bench report` lines of the Makefile's report target."""
 
 
 def test_the_report_target_makes_every_committed_report():
