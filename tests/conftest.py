@@ -36,7 +36,6 @@ def makefile_recipe(target):
     return [expand(line) for line in lines]
 
 
-
 def makefile_commands(target, subcommand):
     """The argument lists of the `lava-bridge-bench SUBCOMMAND` lines of the Makefile's `target`."""
     prefix = f"lava-bridge-bench {subcommand} "
@@ -46,6 +45,22 @@ def makefile_commands(target, subcommand):
 def makefile_sweeps(target):
     """The options of each `lava-bridge-bench sweep` line of the Makefile's `target`: {"--envs": ..., ...}."""
     return [dict(zip(argv[::2], argv[1::2])) for argv in makefile_commands(target, "sweep")]
+
+
+@pytest.fixture(scope="session", autouse=True)
+def scratch_in_pytest_tmp(tmp_path_factory):
+    """TMPDIR, for this process and the ones it starts, inside pytest's own temporary directory. A
+    sweep's scratch directory outlives a test that SIGKILLs the sweep, and SB3's logger makes a folder
+    in the temporary directory on every learn(): both then go with pytest's old runs instead of
+    piling up in /tmp."""
+    import tempfile
+
+    scratch = tmp_path_factory.mktemp("tmpdir")
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("TMPDIR", str(scratch))
+        patch.setattr(tempfile, "tempdir", None)  # gettempdir() caches; read TMPDIR again
+        yield
+
 
 @pytest.fixture(scope="session", autouse=True)
 def one_torch_thread():
