@@ -136,9 +136,11 @@ def maze_figure(layout, states: np.ndarray | None, weights: list[tuple[float, fl
         relative = [p * len(p) for _, _, p in weights]
         positive = np.concatenate(relative)
         positive = positive[positive > 0]
-        # a panel whose strategy starts every episode from p0 has no positive weight; all of them: no scale
-        norm = (LogNorm(vmin=positive.min(), vmax=max(positive.max(), positive.min() * 1.01)) if positive.size
-                else None)
+        # a colour scale only where the probabilities differ: a panel whose strategy starts every episode
+        # from p0 has none, and the reverse curriculum's few starts are often equally likely (one per demo
+        # episode), which a collapsed scale would dress up as a gradient; a panel of equal ones says so
+        varied = positive.size > 0 and positive.max() > positive.min() * (1 + 1e-9)
+        norm = LogNorm(vmin=positive.min(), vmax=positive.max()) if varied else None
         points = None
         for i, ((step, success, _), rel) in enumerate(zip(weights, relative)):
             ax = fig.add_subplot(grid[1 + i // 2, i % 2])
@@ -151,7 +153,12 @@ def maze_figure(layout, states: np.ndarray | None, weights: list[tuple[float, fl
                 ax.scatter(states[~drawn, 0], states[~drawn, 1], s=4, color="#9a9a9a", zorder=3, edgecolors="none")
                 if not drawn.any():
                     title += ": every start from p0"
-            if drawn.any():
+            if drawn.any() and rel[drawn].max() <= rel[drawn].min() * (1 + 1e-9):
+                title += ": one start state" if drawn.sum() == 1 else f": {drawn.sum()} equally likely start states"
+            if drawn.any() and not varied:
+                ax.scatter(states[drawn, 0], states[drawn, 1], s=14 if drawn.all() else 40, color="#3b528b",
+                           zorder=4, edgecolors="none" if drawn.all() else "black")
+            elif drawn.any():
                 order = np.flatnonzero(drawn)[np.argsort(rel[drawn])]  # the most likely starts drawn last, on top
                 points = ax.scatter(states[order, 0], states[order, 1], c=np.clip(rel[order], norm.vmin, None),
                                     s=14 if drawn.all() else 40, cmap="viridis", norm=norm, zorder=3 if drawn.all() else 4,

@@ -587,6 +587,28 @@ def test_the_maze_figure_of_a_task_draws_its_own_layout(tmp_path):
     assert report_figures.maze_layout(run) != lava_bridge_mj.task_layout("LavaBridge-v0")
 
 
+@pytest.mark.parametrize("probabilities, titles, colour_scale", [
+    # the reverse curriculum on two demo episodes, then from p0: nothing for a colour scale to tell
+    (([0.5, 0, 0.5, 0], [0, 0, 0, 0]), (": 2 equally likely start states", ": every start from p0"), False),
+    (([0, 1, 0, 0], [0.25] * 4), (": one start state", ": 4 equally likely start states"), True),
+    (([0.7, 0, 0.3, 0], [0.5, 0, 0.5, 0]), ("", ": 2 equally likely start states"), True),
+])
+def test_the_maze_figure_scales_its_colours_only_where_start_probabilities_differ(probabilities, titles,
+                                                                                  colour_scale):
+    import lava_bridge_mj
+
+    states = np.array([[-4.0, 1.0, 0, 0], [-2.0, 0.0, 0, 0], [0.0, 0.0, 0, 0], [3.0, 0.5, 0, 0]])
+    weights = [(step, 0.25, np.array(p)) for step, p in zip((10_000, 20_000), probabilities)]
+    fig = report_figures.maze_figure(lava_bridge_mj.task_layout("LavaBridge-v0"), states, weights, "caption")
+    try:
+        panels = [ax for ax in fig.axes[1:] if ax.get_title().startswith("step ")]
+        assert [ax.get_title() for ax in panels] == [f"step {step} (p0 success 0.25){title}"
+                                                    for step, title in zip(("10,000", "20,000"), titles)]
+        assert (len(fig.axes) == 1 + len(panels) + 1) == colour_scale  # the colour bar is an axis of its own
+    finally:
+        report_figures._pyplot().close(fig)
+
+
 @pytest.mark.parametrize("returns, limits", [
     ((0.02, 0.03, 0.025), (-0.03, 1.03)),    # a short run's small returns on the metric's own 0-1 axis
     ((-2.0, 0.5, 1.0), (-2.09, 1.09)),       # rewards that leave 0-1 (a lava penalty) widen it to the data
