@@ -55,8 +55,9 @@ from lava_bridge_mj.eval.arguments import format_seeds, in_main_thread as _in_ma
 from lava_bridge_mj.eval.arguments import raise_keyboard_interrupt as _interrupt
 from lava_bridge_mj.eval.report_figures import curves_figure, maze_figure, maze_layout, save_figure
 from lava_bridge_mj.eval.report_groups import START_STUDY, benchmark_groups, demo_size_groups, weights_run
-from lava_bridge_mj.eval.report_tables import (findings_section, last_evaluation_table, late_table, pairwise_section,
-                                               reach_table, runs_table, study_section, threshold_table)
+from lava_bridge_mj.eval.report_tables import (counted, findings_section, last_evaluation_table, late_table,
+                                               pairwise_section, reach_table, runs_table, study_section,
+                                               threshold_table)
 from lava_bridge_mj.eval.summary import read_start_weights
 from lava_bridge_mj.tasks import DEFAULT_ENV_ID
 from lava_bridge_mj.eval.sweep import seed_list
@@ -146,11 +147,6 @@ def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dic
             lines.extend(_task_sections(mine, curves, threshold, reps, where, out, warnings, "###", f"{task}_"))
     atomic_write_text(out / "report.md", "\n".join(lines) + "\n")
     return warnings
-
-
-def counted(number: int, noun: str) -> str:
-    """"1 group", "3 groups"."""
-    return f"{number} {noun}{'' if number == 1 else 's'}"
 
 
 MAZE_STRATEGIES = {"auxss": "AuxSS", "reverse_ss": "reverse_ss"}

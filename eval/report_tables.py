@@ -106,6 +106,11 @@ def reach_table(groups: list[Group], threshold: float) -> list[str]:
     return lines
 
 
+def counted(number: int, noun: str) -> str:
+    """"1 group", "3 groups"."""
+    return f"{number} {noun}{'' if number == 1 else 's'}"
+
+
 def pairwise_section(groups: list[Group], threshold: float) -> list[str]:
     """The pairwise table: every test of eval/statistics.py for each of `comparison_pairs`."""
     compared, skipped = [], []
@@ -116,9 +121,12 @@ def pairwise_section(groups: list[Group], threshold: float) -> list[str]:
             skipped.append(f"{a.label} against {b.label}")
             continue
         compared.append((a, b, stats.compare(*outcomes)))
+    not_compared = ["", f"*Not compared (no evaluation step in common): {'; '.join(skipped)}.*"] if skipped else []
+    if not compared:  # the method paragraph would describe an empty table
+        return ["*No pairs to compare here.*", *not_compared]
     lines = [f"Each pair up to the last step both groups have. Two-sided p-values, raw and (in brackets) "
-             f"Holm-adjusted across the {len(compared)} pairs of this table, one family per column: Fisher's exact "
-             f"test on the reach counts; Mann-Whitney U on the steps to {threshold:g}, a seed that never got there "
+             f"Holm-adjusted across the {counted(len(compared), 'pair')} of this table, one family per column: "
+             f"Fisher's exact test on the reach counts; Mann-Whitney U on the steps to {threshold:g}, a seed that never got there "
              f"tied last; permutation tests of the difference in mean final and late-window success from p0 "
              f"(the last third of the steps). Rank and permutation p-values use every split of the seeds when there "
              f"are at most {stats.PERMUTATIONS:,}, else {stats.PERMUTATIONS:,} random ones (seed "
@@ -129,8 +137,6 @@ def pairwise_section(groups: list[Group], threshold: float) -> list[str]:
              f"observed rates are equal. The verdict names each test that rejects at {stats.ALPHA:g} after the "
              f"correction, and is *not enough seeds to decide* when none does: the groups are then not ranked. A "
              f"group of one seed gets no rank or permutation test ('-')."]
-    if not compared:
-        return lines + ["", "*No pairs to compare here.*"]
     needed = stats.seeds_needed(0.5, 0.8)
     lines[0] += (f" For reference, a reach rate of 0.8 against 0.5 needs {needed} seeds per group "
                  f"for {stats.POWER:.0%} power." if needed else "")
@@ -144,9 +150,7 @@ def pairwise_section(groups: list[Group], threshold: float) -> list[str]:
                  f"{c.b.reach.reached}/{c.b.reach.seeds}", *(_p(c.p[t], adjusted[t]) for t in stats.TESTS),
                  f"{c.improvement:.2f}", power, needed, stats.decision(c, adjusted, a.label, b.label)]
         lines.append("| " + " | ".join(cells) + " |")
-    if skipped:
-        lines += ["", f"*Not compared (no evaluation step in common): {'; '.join(skipped)}.*"]
-    return lines
+    return lines + not_compared
 
 
 def findings_section(groups: list[Group], heading: str = "##") -> list[str]:

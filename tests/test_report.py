@@ -587,6 +587,18 @@ def test_the_maze_figure_of_a_task_draws_its_own_layout(tmp_path):
     assert report_figures.maze_layout(run) != lava_bridge_mj.task_layout("LavaBridge-v0")
 
 
+def test_the_pairwise_section_of_a_single_group_says_only_that_there_is_nothing_to_compare(tmp_path):
+    from lava_bridge_mj.eval.report_tables import pairwise_section
+
+    for seed in range(3):
+        write_run(tmp_path / f"seed{seed}", seed=seed, p0=(0.0, 0.9))
+    groups = aggregate.group_runs(aggregate.find_runs(tmp_path))
+    assert len(groups) == 1 and pairwise_section(groups, 0.8) == ["*No pairs to compare here.*"]
+    write_run(tmp_path / "uss" / "seed0", method="uniform_ss", p0=(0.0, 0.4))
+    [lines] = [pairwise_section(aggregate.group_runs(aggregate.find_runs(tmp_path)), 0.8)]
+    assert "Holm-adjusted across the 1 pair of this table" in lines[0] and len(lines) == 5
+
+
 @pytest.mark.parametrize("probabilities, titles, colour_scale", [
     # the reverse curriculum on two demo episodes, then from p0: nothing for a colour scale to tell
     (([0.5, 0, 0.5, 0], [0, 0, 0, 0]), (": 2 equally likely start states", ": every start from p0"), False),
