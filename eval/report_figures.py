@@ -114,6 +114,11 @@ def draw_maze(ax, layout) -> None:
     ax.set_yticks([])
 
 
+def _all_equal(values: np.ndarray) -> bool:
+    """Positive `values` equal up to float rounding (1/3 * 3 need not be exactly 1)."""
+    return values.max() <= values.min() * (1 + 1e-9)
+
+
 def maze_figure(layout, states: np.ndarray | None, weights: list[tuple[float, float, np.ndarray]], caption: str):
     """The maze with the candidate states, then one panel per (step, p0 success, probabilities) with the
     probabilities painted on the states, relative to uniform (1 = uniform sampling)."""
@@ -139,7 +144,7 @@ def maze_figure(layout, states: np.ndarray | None, weights: list[tuple[float, fl
         # a colour scale only where the probabilities differ: a panel whose strategy starts every episode
         # from p0 has none, and the reverse curriculum's few starts are often equally likely (one per demo
         # episode), which a collapsed scale would dress up as a gradient; a panel of equal ones says so
-        varied = positive.size > 0 and positive.max() > positive.min() * (1 + 1e-9)
+        varied = positive.size > 0 and not _all_equal(positive)
         norm = LogNorm(vmin=positive.min(), vmax=positive.max()) if varied else None
         points = None
         for i, ((step, success, _), rel) in enumerate(zip(weights, relative)):
@@ -153,7 +158,7 @@ def maze_figure(layout, states: np.ndarray | None, weights: list[tuple[float, fl
                 ax.scatter(states[~drawn, 0], states[~drawn, 1], s=4, color="#9a9a9a", zorder=3, edgecolors="none")
                 if not drawn.any():
                     title += ": every start from p0"
-            if drawn.any() and rel[drawn].max() <= rel[drawn].min() * (1 + 1e-9):
+            if drawn.any() and _all_equal(rel[drawn]):
                 title += ": one start state" if drawn.sum() == 1 else f": {drawn.sum()} equally likely start states"
             if drawn.any() and not varied:
                 ax.scatter(states[drawn, 0], states[drawn, 1], s=14 if drawn.all() else 40, color="#3b528b",
