@@ -48,18 +48,19 @@ def makefile_sweeps(target):
 
 
 @pytest.fixture(scope="session", autouse=True)
-def scratch_in_pytest_tmp(tmp_path_factory):
-    """TMPDIR, for this process and the ones it starts, inside pytest's own temporary directory. A
-    sweep's scratch directory outlives a test that SIGKILLs the sweep, and SB3's logger makes a folder
-    in the temporary directory on every learn(): both then go with pytest's old runs instead of
-    piling up in /tmp."""
+def scratch_tmpdir():
+    """TMPDIR, for this process and the ones it starts, a fresh directory removed at the end. A sweep's
+    scratch directory outlives a test that SIGKILLs the sweep, SB3's logger makes a folder on every
+    learn() and Ray its session: they go with it instead of piling up in /tmp. Short on purpose: Ray
+    puts Unix sockets under it, whose paths may not exceed 107 bytes."""
     import tempfile
 
-    scratch = tmp_path_factory.mktemp("tmpdir")
+    scratch = tempfile.mkdtemp(prefix="lbm-tests-")
     with pytest.MonkeyPatch.context() as patch:
-        patch.setenv("TMPDIR", str(scratch))
+        patch.setenv("TMPDIR", scratch)
         patch.setattr(tempfile, "tempdir", None)  # gettempdir() caches; read TMPDIR again
         yield
+    shutil.rmtree(scratch, ignore_errors=True)
 
 
 @pytest.fixture(scope="session", autouse=True)
