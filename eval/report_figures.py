@@ -160,14 +160,14 @@ def maze_figure(layout, states: np.ndarray | None, weights: list[tuple[float, fl
                     title += ": every start from p0"
             if drawn.any() and _all_equal(rel[drawn]):
                 title += ": one start state" if drawn.sum() == 1 else f": {drawn.sum()} equally likely start states"
-            if drawn.any() and not varied:
-                ax.scatter(states[drawn, 0], states[drawn, 1], s=14 if drawn.all() else 40, color="#3b528b",
-                           zorder=4, edgecolors="none" if drawn.all() else "black")
-            elif drawn.any():
+            if drawn.any():
                 order = np.flatnonzero(drawn)[np.argsort(rel[drawn])]  # the most likely starts drawn last, on top
-                points = ax.scatter(states[order, 0], states[order, 1], c=np.clip(rel[order], norm.vmin, None),
-                                    s=14 if drawn.all() else 40, cmap="viridis", norm=norm, zorder=3 if drawn.all() else 4,
-                                    edgecolors="none" if drawn.all() else "black")
+                colours = (dict(c=np.clip(rel[order], norm.vmin, None), cmap="viridis", norm=norm) if varied
+                           else dict(color="#3b528b"))
+                drawn_points = ax.scatter(states[order, 0], states[order, 1], s=14 if drawn.all() else 40,
+                                          zorder=3 if drawn.all() else 4,
+                                          edgecolors="none" if drawn.all() else "black", **colours)
+                points = drawn_points if varied else points
             ax.set_title(title, fontsize=9)
         if points is not None:
             fig.colorbar(points, ax=fig.axes[1:], shrink=0.8,
