@@ -14,8 +14,9 @@ as PNG and PDF (named TASK_NAME, with one part of report.md per task, when DIR h
                        an AuxSS run's start-state probabilities on those states at a few evaluations
     maze_reverse_ss    the same for a reverse_ss run (RFCL's reverse curriculum), when DIR has one: its
                        start state on each demo episode moving back from the goal, then p0
-and report.md, which embeds the PNGs (relative links) with its tables: IQM and 95% CI at the last
-evaluation per group, the steps to p0 success >= 0.8 with how many seeds got there, the reach counts
+and report.md, which embeds the PNGs (relative links) with its tables: how far each reverse_ss seed's
+curriculum came (when it reached p0, or how far back along the demo episodes its starts were), IQM and
+95% CI at the last evaluation per group, the steps to p0 success >= 0.8 with how many seeds got there, the reach counts
 with exact intervals and the area under the success curve, the pairwise tests of `comparison_pairs`
 (eval/statistics.py: exact and rank tests, Holm-corrected, with the power of each), the paper's findings
 (LavaBridge-v0 only, eval/findings.py) and the study's questions on each task with the start
@@ -58,7 +59,7 @@ from lava_bridge_mj.eval.report_groups import START_STUDY, benchmark_groups, dem
 from lava_bridge_mj.eval.report_tables import (counted, findings_section, last_evaluation_table, late_table,
                                                pairwise_section, reach_table, runs_table, study_section,
                                                threshold_table)
-from lava_bridge_mj.eval.summary import read_start_weights
+from lava_bridge_mj.eval.summary import curriculum_progress, read_start_weights
 from lava_bridge_mj.tasks import DEFAULT_ENV_ID
 from lava_bridge_mj.eval.sweep import seed_list
 
@@ -203,6 +204,35 @@ def _maze_section(groups: list[Group], threshold: float, where: str, out: Path, 
             f"[PDF]({name}.pdf)"]
 
 
+def _curriculum_lines(groups: list[Group], warnings: list[str]) -> list[str]:
+    """The paragraph and table of how far each reverse_ss seed's curriculum came (`curriculum_progress`).
+    A start_weights.npz that cannot be read is passed over, with a line in `warnings`."""
+    rows = []
+    for group in benchmark_groups(groups, ("reverse_ss",)):
+        done, cells = 0, []
+        for run in group.runs:
+            if not (run.path / "start_weights.npz").is_file():
+                cells.append(f"{run.seed}: -")
+                continue
+            try:
+                step, back = curriculum_progress(run.path, run.rows[-1]["step"])
+            except ValueError as error:
+                if not any(warning.startswith(str(error)) for warning in warnings):  # once, where the map named it
+                    warnings.append(f"{error}. The curriculum table does not use it.")
+                cells.append(f"{run.seed}: unreadable")
+                continue
+            done += step is not None
+            cells.append(f"{run.seed}: " + (f"{step:,.0f}" if step is not None else
+                                            f"{math.floor(100 * back)}% back" if back is not None else "not done"))
+        rows.append(f"| {group.label} | {done} of {len(group.runs)} | {', '.join(cells)} |")
+    return ["How far each seed's curriculum came: the first evaluation from which every episode started from p0 "
+            "(the curriculum done), or, where it was not done by the seed's last evaluation, how far back along "
+            "the goal-reaching demo episodes its starts then were: the mean over the episodes of the start's "
+            "distance from the episode's last state, as a share of the episode (0% at the last state, 100% at "
+            "the first).", "",
+            "| group | curriculum done | per seed (seed: step done, or how far back) |", "|---|---:|---|", *rows]
+
+
 def _task_sections(groups: list[Group], curves: dict, threshold: float, reps: int, where: str, out: Path,
                    warnings: list[str], heading: str, prefix: str) -> list[str]:
     """The figures and tables of the groups of one task, under `heading`-level titles, figure files
@@ -238,7 +268,8 @@ def _task_sections(groups: list[Group], curves: dict, threshold: float, reps: in
     if any((run.path / "start_weights.npz").is_file() for g in benchmark_groups(groups, ("reverse_ss",)) for run in g.runs):
         skipped: list[str] = []  # its own, so the AuxSS section's notes are not repeated under it
         lines.extend(["", f"{heading} The reverse curriculum's start states", "",
-                      *_maze_section(groups, threshold, where, out, skipped, prefix + "maze_reverse_ss", "reverse_ss")])
+                      *_maze_section(groups, threshold, where, out, skipped, prefix + "maze_reverse_ss", "reverse_ss"),
+                      "", *_curriculum_lines(groups, skipped)])
         warnings.extend(skipped)
     lines.extend(["", f"{heading} At the last evaluation", "", *last_evaluation_table(groups, curves)])
     lines.extend(["", f"{heading} Over the last third of training", "", *late_table(groups, reps)])

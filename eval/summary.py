@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import csv
 import dataclasses
+import functools
 import math
 import sys
 from pathlib import Path
@@ -27,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 import lava_bridge_mj
+from lava_bridge_mj.agents.reverse_curriculum import goal_reaching_demos
 from lava_bridge_mj.eval import run_files
 from lava_bridge_mj.layout import Layout
 
@@ -156,6 +158,48 @@ def start_room_share(run_dir: Path, until: float) -> float:
     if probabilities.size == 0 or not early.any():
         return math.nan
     return float(probabilities[early][:, in_start_room(run_dir, states)].sum(axis=1).mean())
+
+
+@functools.lru_cache(maxsize=None)
+def _demo_episode_ids(demos: int, env_id: str) -> tuple[np.ndarray, np.ndarray]:
+    """The goal-reaching demo episodes a reverse_ss run of this demo set and task starts from, and their ids."""
+    return goal_reaching_demos(lava_bridge_mj.load_demos(demos, env_id=env_id))
+
+
+def curriculum_progress(run_dir: Path, until: float) -> tuple[float | None, float | None]:
+    """How far a reverse_ss run's curriculum had come by step `until`, from its start_weights.npz.
+
+    Returns (done, back): `done` is the first evaluation step from which every episode started from p0
+    (no weight on any demo state), None if none by `until`; `back`, where the curriculum was not done,
+    is how far its starts had moved back along the demo episodes at the last evaluation by `until`: the
+    mean over the episodes of (last index - start index) / last index, 0 with every start at its
+    episode's last state, 1 with every start at its first. `back` is None when the file's candidates
+    are not the run's goal-reaching demo episodes (nothing to measure along) or it logged no evaluation
+    by `until`. ValueError naming the file when it cannot be read or does not hold one start per episode.
+    """
+    path = run_dir / "start_weights.npz"
+    steps, states, probabilities = read_start_weights(path)
+    kept = steps <= until
+    steps, probabilities = steps[kept], probabilities[kept]
+    from_p0 = ~probabilities.any(axis=1) if probabilities.size else np.ones(len(steps), dtype=bool)
+    if from_p0.any():
+        return float(steps[np.argmax(from_p0)]), None
+    if not len(steps):
+        return None, None
+    config = read_config(run_dir)
+    episode_states, ids = _demo_episode_ids(int(config.get("demos", 500)),
+                                            str(config.get("env_id", lava_bridge_mj.ENV_ID)))
+    if episode_states.shape != states.shape or not np.array_equal(episode_states, states):
+        return None, None
+    shares = []
+    for episode in np.unique(ids):
+        rows = np.flatnonzero(ids == episode)
+        starts = np.flatnonzero(probabilities[-1, rows] > 0)
+        if len(starts) != 1:
+            raise ValueError(f"{path}: demo episode {episode} has {len(starts)} start states at step "
+                             f"{steps[-1]:,.0f}, not one: not a reverse curriculum's start weights")
+        shares.append((len(rows) - 1 - starts[0]) / max(len(rows) - 1, 1))
+    return None, float(np.mean(shares))
 
 
 def markdown(path: Path, threshold: float = THRESHOLD, start_room_until: float | None = None) -> str:

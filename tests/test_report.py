@@ -314,6 +314,9 @@ def test_report_writes_every_figure_and_the_markdown(tmp_path, capsys):
     # puts no weight on any demo state: every episode starts from p0
     assert (f"then reverse_ss's start-state probabilities on them at 4 evaluations of "
             f"`{sweep / 'reverse_ss-d500' / 'seed2'}` (seed 2). At step 5,000 every episode starts from p0.") in text
+    # and every seed's curriculum is done at its last evaluation (the fake weights' candidates are not demo
+    # episodes, so no seed could have been measured along them)
+    assert "| reverse_ss (0.5K) | 3 of 3 | 0: 5,000, 1: 5,000, 2: 5,000 |" in text
     # over the last third (steps 4,000 and 5,000) auxss's seeds average 0.4025 + 0.1 * seed: IQM 0.5025
     assert "| auxss (0.5K) | 3 | 2 (4,000-5,000) | 0.50 [" in text
 
@@ -432,6 +435,31 @@ def test_a_damaged_start_weights_file_is_skipped_with_one_warning(tmp_path, caps
     text = (tmp_path / "out" / "report.md").read_text()
     assert f"*Skipped: {weights}" in text and f"evaluations of `{tmp_path / 'runs' / 'seed1'}` (seed 1)" in text
     assert "| auxss (0.5K) | 2: 0, 1 |" in text
+
+
+def test_the_curriculum_table_measures_how_far_back_and_names_a_damaged_file_once(tmp_path, capsys):
+    """Seed 0's starts at its last evaluation: the first demo episode's state 1 of 0-168 (167 / 168 back),
+    the second's first state (all the way): 0.997 on average, which is not yet all the way, so 99%.
+    Seed 1, the only one reaching 0.8, is the map's first choice; its file is damaged and named once."""
+    import lava_bridge_mj
+    from lava_bridge_mj.agents import goal_reaching_demos
+
+    root = tmp_path / "runs" / "reverse_ss-d500"
+    states, _ = goal_reaching_demos(lava_bridge_mj.load_demos(500))
+    for seed, p0 in ((0, [0.0, 0.1, 0.2]), (1, [0.0, 0.9, 1.0])):
+        write_run(root / f"seed{seed}", method="reverse_ss", seed=seed, p0=p0)
+    probabilities = np.zeros((3, len(states)))
+    probabilities[:, [1, 169]] = 0.5
+    np.savez(root / "seed0" / "start_weights.npz", steps=np.array([1000, 2000, 3000]), states=states,
+             probabilities=probabilities)
+    damaged = root / "seed1" / "start_weights.npz"
+    damaged.write_bytes(b"\x80\x04garbage")
+    assert report.main([str(tmp_path / "runs"), "--reps", "50", "--out", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and str(damaged) in err
+    text = (tmp_path / "out" / "report.md").read_text()
+    assert "| reverse_ss (0.5K) | 0 of 2 | 0: 99% back, 1: unreadable |" in text
+    assert text.count(f"*Skipped: {damaged}") == 1
 
 
 def fail_on_write(monkeypatch, name, error):

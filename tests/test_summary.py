@@ -61,6 +61,37 @@ def test_start_room_share_is_nan_for_p0_runs(tmp_path):
     assert np.isnan(summary.start_room_share(run, 1000))
 
 
+def test_curriculum_progress_of_a_reverse_curriculum_by_hand(tmp_path):
+    """The 0.5K set's two goal-reaching demo episodes hold 169 and 170 states (indices 0-168 and 169-338).
+    At step 1,000 each start is its episode's last state; at 2,000 the first episode's start is its state
+    84 (half way back: (168 - 84) / 168) and the second's its first state (all the way back): 0.75 back
+    on average; at 3,000 no demo state has weight, so every episode starts from p0."""
+    import lava_bridge_mj
+    from lava_bridge_mj.agents import goal_reaching_demos
+
+    run = tmp_path / "seed0"
+    write_run(run, [0.0, 0.5, 1.0], [0.0, 0.2, 0.5])
+    (run / "config.json").write_text('{"method": "reverse_ss", "demos": 500}')
+    states, ids = goal_reaching_demos(lava_bridge_mj.load_demos(500))
+    assert np.array_equal(np.unique(ids, return_counts=True)[1], [169, 170])
+    probabilities = np.zeros((3, len(states)))
+    probabilities[0, [168, 338]] = probabilities[1, [84, 169]] = 0.5
+    np.savez(run / "start_weights.npz", steps=np.array([1000, 2000, 3000]), states=states, probabilities=probabilities)
+    assert summary.curriculum_progress(run, 1000) == (None, 0.0)
+    assert summary.curriculum_progress(run, 2000) == (None, pytest.approx(0.75))
+    assert summary.curriculum_progress(run, 3000) == (3000.0, None)
+    assert summary.curriculum_progress(run, 500) == (None, None)  # nothing logged that early
+    # weights that are not a reverse curriculum's: two starts on one episode
+    probabilities[1, 85] = 0.25
+    np.savez(run / "start_weights.npz", steps=np.array([1000, 2000, 3000]), states=states, probabilities=probabilities)
+    with pytest.raises(ValueError, match=r"start_weights\.npz: demo episode 0 has 2 start states at step 2,000"):
+        summary.curriculum_progress(run, 2000)
+    # candidates that are not the run's demo episodes: nothing to measure how far back along
+    np.savez(run / "start_weights.npz", steps=np.array([1000, 2000]), states=states[:30],
+             probabilities=np.full((2, 30), 0.1))
+    assert summary.curriculum_progress(run, 2000) == (None, None)
+
+
 def test_start_room_needs_a_positive_step(tmp_path, capsys):
     write_run(tmp_path / "seed0", [0.0], [0.0])
     with pytest.raises(SystemExit):
