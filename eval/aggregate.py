@@ -57,7 +57,7 @@ import numpy as np
 import scipy.stats
 
 from lava_bridge_mj.eval.summary import THRESHOLD, read_config, read_metrics, seed_summary
-from lava_bridge_mj.tasks import DEFAULT_ENV_ID, TASKS
+from lava_bridge_mj.tasks import DEFAULT_ENV_ID, SUITE, TASKS
 
 METRICS = ("success_p0", "success_ood", "train_return")
 """The metrics with curves: success rate from p0 and from ood, and the training return."""
@@ -226,7 +226,8 @@ def group_runs(runs: list[RunRecord]) -> list[Group]:
                                      f"two run directories, {a.path} and {b.path}; report each run once")
             groups.append(Group(method, demos, dict(zip(differing, values)), group_members, task))
     order = {method: i for i, method in enumerate(METHODS)}
-    tasks = {task: i for i, task in enumerate(TASKS)}
+    # the study's tasks in SUITE's order (easy to hard), then the other registered ones
+    tasks = {task: i for i, task in enumerate(dict.fromkeys((*SUITE, *TASKS)))}
     groups.sort(key=lambda g: (tasks.get(g.task, len(tasks)), g.task, order.get(g.method, len(order)), g.method,
                                g.demos, g.label))
     return groups

@@ -188,6 +188,17 @@ def test_groups_by_config_not_by_directory_names_at_any_depth(tmp_path):
     assert [g.method for g in groups] == sorted((g.method for g in groups), key=METHODS.index)
 
 
+def test_groups_of_several_tasks_come_in_the_suites_order_then_the_other_tasks(tmp_path):
+    # registered as Narrow, FarStart, Bend, TwoCrossings, Decoy; SUITE puts the decoy before the far start,
+    # and the bend, not in the suite, after every suite task
+    for i, task in enumerate(("LavaBridgeBend-v0", "LavaBridgeTwoCrossings-v0", "LavaBridgeFarStart-v0",
+                              "LavaBridgeDecoy-v0", "LavaBridgeNarrow-v0")):
+        write_run(tmp_path / str(i) / "seed0", env_id=task)
+    groups = aggregate.group_runs(aggregate.find_runs(tmp_path))
+    assert [g.task for g in groups] == ["LavaBridgeDecoy-v0", "LavaBridgeFarStart-v0", "LavaBridgeNarrow-v0",
+                                        "LavaBridgeTwoCrossings-v0", "LavaBridgeBend-v0"]
+
+
 def test_groups_are_picked_by_method_and_demo_set_and_described_by_the_registry(tmp_path):
     write_run(tmp_path / "a" / "seed0", method="auxss", seed=0)
     write_run(tmp_path / "b" / "seed0", method="auxss", seed=0, strategy={"sigma": 0.2})
