@@ -135,6 +135,31 @@ def test_results_md_answers_the_study_per_task_as_the_study_report_gives_it():
     assert_quoted_from(paragraph[:paragraph.index("\n\n")], report_text, "the README's study paragraph")
 
 
+CURRICULUM_ROW = (r"^\| group \| curriculum done \| per seed[^\n]*\n\|[-:|]+\|\n"
+                  r"\| reverse_ss \(0\.5K\) on (LavaBridge\w*-v0) \| (\d+ of \d+) \| (.*) \|$")
+"""The study report's curriculum table of a task (one group): task, the seeds whose curriculum is done,
+every seed's cell."""
+
+
+def test_results_md_says_how_far_the_reverse_curriculum_came_as_the_study_report_gives_it():
+    # "N of M seeds finish the curriculum" in a task's subsection is the report's count for that task, and
+    # "between A% and B% of the way back" the least and most of its unfinished seeds' shares
+    report = (ROOT / "docs/report_study/report.md").read_text()
+    table = {task: (done, [int(share) for share in re.findall(r"(\d+)% back", cells)])
+             for task, done, cells in re.findall(CURRICULUM_ROW, report, re.MULTILINE)}
+    answered = task_sections(section((ROOT / "docs/results.md").read_text(), "## The study on the task suite"), "###")
+    said = {}
+    for task, text in answered.items():
+        prose = " ".join(text.split())
+        for done in re.findall(r"(\d+ of \d+) seeds finish the curriculum", prose):
+            said[task] = done
+            assert done == table[task][0], f"docs/results.md on {task}: {done} seeds finish; the report: {table[task][0]}"
+        for low, high in re.findall(r"between (\d+)% and (\d+)% of the way back", prose):
+            assert (int(low), int(high)) == (min(table[task][1]), max(table[task][1])), task
+    # every task with a curriculum table is described; the far start and the decoy are (checked by hand)
+    assert set(said) == set(table) and {"LavaBridgeDecoy-v0", "LavaBridgeFarStart-v0"} <= set(said)
+
+
 def assert_quoted_from(prose, report_text, where):
     """Every count (18/20) and decimal (0.0136) in `prose` is in `report_text`."""
     for number in re.findall(r"\d+/\d+|\d\.\d+", prose):
