@@ -17,7 +17,7 @@ from conftest import flip_a_data_bit, interrupted_copy, metrics_without_wall_tim
 from lava_bridge_mj.agents.sac import SACConfig
 from lava_bridge_mj.agents.goaldist_ss import GoalDistSS
 from lava_bridge_mj.eval import cli
-from lava_bridge_mj.eval.provenance import git_state
+from lava_bridge_mj.eval.provenance import git_state, processor
 from lava_bridge_mj.agents.methods import METHODS as METHOD_SPECS
 from lava_bridge_mj.eval.config import METHODS, RunConfig
 from lava_bridge_mj.eval.run_files import EPISODE_FIELDS, METRIC_FIELDS, RunDirectoryError, run_status, save_torch
@@ -246,6 +246,9 @@ def test_provenance_records_each_training_session_with_the_strategy_settings(tra
                                  "temperature_growth": GoalDistSS(np.zeros((1, 4)), goal=(0, 0)).temperature_growth,
                                  "max_temperature": 50.0, "schedule": "episodes", "budget": None}
     assert first["code"]["lava_bridge_mj"] and first["code"]["torch"] == torch.__version__
+    # the processor and torch's vector instructions: another processor may round the update differently
+    assert first["code"]["processor"] == processor() and first["code"]["processor"]
+    assert first["code"]["torch_cpu_capability"] == torch.backends.cpu.get_cpu_capability()
     assert first["device"] == "cpu"  # a run option, recorded per session, not in config.json
 
     train(config, tmp_path, resume=True, progress=False)  # finished at its budget: trains nothing, records nothing
@@ -267,6 +270,20 @@ def test_provenance_records_each_training_session_with_the_strategy_settings(tra
     train(omega, tmp_path / "omega", progress=False)
     assert json.loads((tmp_path / "omega/provenance.json").read_text())[0]["strategy"] == {
         "k": 4, "rollouts": 32, "seed": 7, "clamp": 0.05}  # the rollouts are seeded with the run's seed
+
+
+def test_processor_names_the_first_entry_of_cpuinfo(tmp_path, monkeypatch):
+    cpuinfo = tmp_path / "cpuinfo"
+    cpuinfo.write_text("processor\t: 0\nvendor_id\t: AuthenticAMD\ncpu family\t: 26\nmodel\t\t: 2\n"
+                       "model name\t: AMD EPYC\nflags\t\t: fpu avx2\n\n"
+                       "processor\t: 1\nvendor_id\t: GenuineIntel\nmodel name\t: other\n")
+    assert processor(cpuinfo) == "AuthenticAMD AMD EPYC (cpu family 26, model 2)"
+    cpuinfo.write_text("processor\t: 0\nmodel name\t: ARMv8 Processor\n")  # no family or model numbers
+    assert processor(cpuinfo) == "ARMv8 Processor"
+    monkeypatch.setattr("platform.processor", lambda: "arm")
+    assert processor(tmp_path / "missing") == "arm"  # no /proc/cpuinfo (macOS, Windows)
+    cpuinfo.write_text("processor\t: 0\n")
+    assert processor(cpuinfo) == "arm"
 
 
 def test_resume_refuses_a_damaged_provenance_record_and_changes_nothing(finished_run, tmp_path):
