@@ -123,11 +123,13 @@ def interrupted_copy(full_dir, resumed_dir):
 
 
 def flip_a_data_bit(path):
-    """Flip one bit inside the largest record of a torch zip archive: its data, not its headers."""
+    """Flip one bit inside the largest tensor storage of a torch zip archive (a record under data/): a
+    float's bits, not a header, and not the pickle, where the byte hit depends on how long the pickled
+    objects are (the replay buffer, the episode counts) and may fall in a string torch then cannot decode."""
     import zipfile
 
     with zipfile.ZipFile(path) as archive:
-        info = max(archive.infolist(), key=lambda i: i.file_size)
+        info = max((i for i in archive.infolist() if "/data/" in i.filename), key=lambda i: i.file_size)
     data = bytearray(path.read_bytes())
     offset = info.header_offset + 30 + len(info.filename.encode()) + len(info.extra)  # past the local header
     data[offset + info.file_size // 2] ^= 0x10
