@@ -20,7 +20,8 @@ curriculum came (when it reached p0, or how far back along the demo episodes its
 with exact intervals and the area under the success curve, the pairwise tests of `comparison_pairs`
 (eval/statistics.py: exact and rank tests, Holm-corrected, with the power of each), the paper's findings
 (LavaBridge-v0 only, eval/findings.py) and the study's questions on each task with the start
-distributions' runs (eval/study.py: verdicts with effect sizes and their intervals). Lines are IQMs
+distributions' runs (eval/study.py: verdicts with effect sizes and their intervals), with a report
+on several tasks opening on one table of every task's answers. Lines are IQMs
 across seeds, bands their 95% stratified-bootstrap CIs (rliable). A figure none of whose methods is in
 DIR is skipped with a line in report.md saying so. For the offline methods (bc, iql) a step is a
 gradient step, not an env step; their legend entries say so.
@@ -57,8 +58,9 @@ from lava_bridge_mj.eval.arguments import raise_keyboard_interrupt as _interrupt
 from lava_bridge_mj.eval.report_figures import curves_figure, maze_figure, maze_layout, save_figure
 from lava_bridge_mj.eval.report_groups import START_STUDY, benchmark_groups, demo_size_groups, weights_run
 from lava_bridge_mj.eval.report_tables import (counted, findings_section, last_evaluation_table, late_table,
-                                               pairwise_section, reach_table, runs_table, study_section,
+                                               pairwise_section, reach_table, runs_table, study_overview, study_section,
                                                threshold_table)
+from lava_bridge_mj.eval.study import Question, answer_questions
 from lava_bridge_mj.eval.summary import curriculum_progress, read_start_weights
 from lava_bridge_mj.tasks import DEFAULT_ENV_ID
 from lava_bridge_mj.eval.sweep import seed_list
@@ -120,7 +122,7 @@ def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dic
                   budget: int | None, seeds: list[int] | None) -> list[str]:
     """Every figure and report.md into `out`; returns the warnings. Runs of one task make the report's
     sections; runs of several tasks make one part per task (figures named TASK_NAME), since methods are
-    compared within a task only."""
+    compared within a task only, after a table of every task's answers to the study's questions."""
     from lava_bridge_mj.eval.atomic import atomic_write_text
 
     warnings: list[str] = []
@@ -138,14 +140,21 @@ def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dic
              f"the evaluation steps that every seed of a group has. For bc and iql a step is a gradient step on "
              f"the demos.", "",
              *runs_table(groups)]
+    # the study's questions are asked at its threshold only, once per task
+    answers = {task: answer_questions([g for g in groups if g.task == task]) if threshold == THRESHOLD else []
+               for task in tasks}
+    overview = study_overview(answers) if len(tasks) > 1 else []
+    if overview:
+        lines.extend(["", "## The study's answers, task by task", "", *overview])
     for task in tasks:
         mine = [g for g in groups if g.task == task]
         if len(tasks) == 1:
-            lines.extend(_task_sections(mine, curves, threshold, reps, where, out, warnings, "##", ""))
+            lines.extend(_task_sections(mine, answers[task], curves, threshold, reps, where, out, warnings, "##", ""))
         else:
             lines.extend(["", f"## {task}", "",
                           f"{counted(sum(len(g.runs) for g in mine), 'run')} in {counted(len(mine), 'group')}."])
-            lines.extend(_task_sections(mine, curves, threshold, reps, where, out, warnings, "###", f"{task}_"))
+            lines.extend(_task_sections(mine, answers[task], curves, threshold, reps, where, out, warnings, "###",
+                                        f"{task}_"))
     atomic_write_text(out / "report.md", "\n".join(lines) + "\n")
     return warnings
 
@@ -233,10 +242,10 @@ def _curriculum_lines(groups: list[Group], warnings: list[str]) -> list[str]:
             "| group | curriculum done | per seed (seed: step done, or how far back) |", "|---|---:|---|", *rows]
 
 
-def _task_sections(groups: list[Group], curves: dict, threshold: float, reps: int, where: str, out: Path,
-                   warnings: list[str], heading: str, prefix: str) -> list[str]:
-    """The figures and tables of the groups of one task, under `heading`-level titles, figure files
-    named `prefix` + name."""
+def _task_sections(groups: list[Group], questions: list[Question], curves: dict, threshold: float, reps: int,
+                   where: str, out: Path, warnings: list[str], heading: str, prefix: str) -> list[str]:
+    """The figures and tables of the groups of one task, with its answers to the study's questions,
+    under `heading`-level titles, figure files named `prefix` + name."""
     from lava_bridge_mj.eval.config import METHODS
 
     lines: list[str] = []
@@ -278,7 +287,7 @@ def _task_sections(groups: list[Group], curves: dict, threshold: float, reps: in
     lines.extend(["", f"{heading} Pairwise tests", "", *pairwise_section(groups, threshold)])
     if threshold == THRESHOLD and groups[0].task == DEFAULT_ENV_ID:  # the paper's claims: 0.8, its maze
         lines.extend(["", f"{heading} The paper's findings", "", *findings_section(groups, heading)])
-    study = study_section(groups, heading) if threshold == THRESHOLD else []
+    study = study_section(questions, heading)
     if study:
         lines.extend(["", f"{heading} The study's questions", "", *study])
     return lines

@@ -17,7 +17,7 @@ from lava_bridge_mj.eval.aggregate import Curve, Group, late_means, steps_to_thr
 from lava_bridge_mj.eval.claims import ALPHA, EFFECT, MOST, POWER, ROBUST
 from lava_bridge_mj.eval.findings import check_findings, common_step
 from lava_bridge_mj.eval.report_groups import comparison_pairs
-from lava_bridge_mj.eval.study import answer_questions
+from lava_bridge_mj.eval.study import QUESTIONS, Question
 from lava_bridge_mj.eval.summary import THRESHOLD
 
 
@@ -178,10 +178,9 @@ def findings_section(groups: list[Group], heading: str = "##") -> list[str]:
     return lines
 
 
-def study_section(groups: list[Group], heading: str = "##") -> list[str]:
-    """The study's questions on the groups of one task (eval/study.py), each comparison with its tests,
-    effect and verdict; empty when none of the questions' pairs was run."""
-    questions = answer_questions(groups)
+def study_section(questions: list[Question], heading: str = "##") -> list[str]:
+    """The study's questions answered on one task (`study.answer_questions`), each comparison with its
+    tests, effect and verdict; empty when none of the questions' pairs was run."""
     if not questions:
         return []
     lines = [f"Each question is answered by the comparisons eval/study.py states, on each method's default "
@@ -207,4 +206,22 @@ def study_section(groups: list[Group], heading: str = "##") -> list[str]:
             lines.append(f"| {answer.a} against {answer.b} | {answer.aspect} | {part.measured if part else '-'} | "
                          f"{effect_text} | {(part.tests if part else '') or '-'} | "
                          f"{(part.power if part else '') or '-'} | **{answer.verdict}** |")
+    return lines
+
+
+def study_overview(answers: dict[str, list[Question]]) -> list[str]:
+    """One table of the study's answers on several tasks (task -> `study.answer_questions` of its
+    groups): per task and question the verdict counts and the comparisons a test decided, a question
+    none of whose pairs was run on a task said to be not run. Empty when no task answers any question."""
+    answered = {task: {q.text: q for q in questions} for task, questions in answers.items() if questions}
+    if not answered:
+        return []
+    lines = ["Each task's answers to the study's questions, from its section \"The study's questions\" below: "
+             "how many of a question's comparisons give each verdict, and the comparisons a test decided.", "",
+             "| task | question | verdicts | decided |", "|---|---|---|---|"]
+    for task, questions in answered.items():
+        for number, (short, text, _) in enumerate(QUESTIONS, 1):
+            question = questions.get(text)
+            lines.append(f"| {task} | {number}. {short} | {question.summary if question else 'not run'} | "
+                         f"{'; '.join(question.decided) if question and question.decided else '-'} |")
     return lines

@@ -49,11 +49,14 @@ SAFETY = ("auxss", "omega_ss")
 UNDIRECTED = ("uniform_ss", "goaldist_ss")
 """Start distributions that ignore safety: uniform over demo states, or by distance to the goal."""
 QUESTIONS = (
-    ("Does a safety-derived start distribution (AuxSS, Omega-SS) beat uniform and goal-distance starts "
+    ("safety-derived against undirected",
+     "Does a safety-derived start distribution (AuxSS, Omega-SS) beat uniform and goal-distance starts "
      "(U-SS, GoalDist-SS)?", tuple((a, b) for a in SAFETY for b in UNDIRECTED)),
-    ("AuxSS or RFCL's reverse curriculum (reverse_ss)?", (("auxss", "reverse_ss"),)),
+    ("AuxSS against the reverse curriculum", "AuxSS or RFCL's reverse curriculum (reverse_ss)?",
+     (("auxss", "reverse_ss"),)),
 )
-"""Each question and the (A, B) pairs that answer it, A the side the question asks about."""
+"""Each question's short name, its text and the (A, B) pairs that answer it, A the side the question
+asks about."""
 ASPECTS = (("learns faster", reach_comparison), ("more robust", robust_comparison))
 TESTS_PER_COMPARISON = 2
 """Each aspect's comparison makes two tests (a count test and a rank or permutation test)."""
@@ -85,6 +88,7 @@ class Answer:
 
 @dataclasses.dataclass(frozen=True)
 class Question:
+    short: str
     text: str
     answers: list[Answer]
 
@@ -94,6 +98,17 @@ class Question:
         counts = collections.Counter(answer.verdict for answer in self.answers)  # ties: first seen first
         return ", ".join(f"{n} {verdict}" for verdict, n in counts.most_common())
 
+    @property
+    def decided(self) -> list[str]:
+        """The comparisons a test decided, one line per pair and winner: 'auxss ahead of uniform_ss:
+        learns faster, more robust'."""
+        aspects: dict[tuple[str, str], list[str]] = {}
+        for answer in self.answers:
+            if answer.part is not None and answer.part.verdict in (SUPPORTED, CONTRADICTED):
+                ahead, behind = (answer.a, answer.b) if answer.part.verdict == SUPPORTED else (answer.b, answer.a)
+                aspects.setdefault((ahead, behind), []).append(answer.aspect)
+        return [f"{ahead} ahead of {behind}: {', '.join(names)}" for (ahead, behind), names in aspects.items()]
+
 
 def answer_questions(groups: list[Group]) -> list[Question]:
     """The study's questions on the groups of one task; a question none of whose pairs was run is left
@@ -102,7 +117,7 @@ def answer_questions(groups: list[Group]) -> list[Question]:
         raise ValueError(f"the study's questions are asked per task, got groups of "
                          f"{sorted({g.task for g in groups})}")
     questions = []
-    for text, pairs in QUESTIONS:
+    for short, text, pairs in QUESTIONS:
         drafts, pending = [], []
         for a, b in pairs:
             ga, gb = pick(groups, a), pick(groups, b)
@@ -117,5 +132,5 @@ def answer_questions(groups: list[Group]) -> list[Question]:
         answers = [Answer(a, b, aspect, next(settled) if item else None,
                           stats.rate_difference(*item.counts) if item else None, absent)
                    for a, b, aspect, item, absent in drafts]
-        questions.append(Question(text, answers))
+        questions.append(Question(short, text, answers))
     return questions

@@ -135,6 +135,22 @@ def test_results_md_answers_the_study_per_task_as_the_study_report_gives_it():
     assert_quoted_from(paragraph[:paragraph.index("\n\n")], report_text, "the README's study paragraph")
 
 
+OVERVIEW_ROW = r"^\| (LavaBridge\w*-v0) \| (\d\. [^|]+) \| ([^|]+) \| ([^|]+) \|$"
+"""A row of the study's answers, task by task: task, question, verdict counts, decided comparisons."""
+
+
+def test_results_md_and_the_readme_give_the_studys_answers_task_by_task_as_the_study_report_does():
+    report = (ROOT / "docs/report_study/report.md").read_text()
+    reported = re.findall(OVERVIEW_ROW, section(report, "## The study's answers, task by task"), re.MULTILINE)
+    quoted = section((ROOT / "docs/results.md").read_text(), "## The study on the task suite")
+    overview = quoted[:quoted.index("\n### ")]  # the table stands before the first task's subsection
+    assert reported and re.findall(OVERVIEW_ROW, overview, re.MULTILINE) == reported
+    readme = (ROOT / "README.md").read_text()
+    assert re.findall(OVERVIEW_ROW, readme, re.MULTILINE) == reported, "the README's table of the study's answers"
+    # each task answered there has its subsection with the same comparisons
+    assert {task for task, *_ in reported} == set(task_sections(quoted, "###"))
+
+
 CURRICULUM_ROW = (r"^\| group \| curriculum done \| per seed[^\n]*\n\|[-:|]+\|\n"
                   r"\| reverse_ss \(0\.5K\) on (LavaBridge\w*-v0) \| (\d+ of \d+) \| (.*) \|$")
 """The study report's curriculum table of a task (one group): task, the seeds whose curriculum is done,

@@ -11,7 +11,7 @@ from conftest import groups_in, write_metric_runs
 pytest.importorskip("rliable", reason="the tests use rliable's probability of improvement: pip install -e '.[plots]'")
 
 from lava_bridge_mj.eval import study  # noqa: E402
-from lava_bridge_mj.eval.report_tables import study_section  # noqa: E402
+from lava_bridge_mj.eval.report_tables import study_overview, study_section  # noqa: E402
 
 SOLVED = {seed: [0.0, 1.0] for seed in range(10)}
 """Ten seeds at success 1.0 from p0 and ood from step 2,000: all reach 0.8 and all are robust."""
@@ -109,7 +109,7 @@ def test_groups_that_share_no_seed_are_named_so_and_tasks_are_not_mixed(tmp_path
 def test_the_report_section_shows_each_comparison_with_its_effect_and_nothing_without_the_methods(tmp_path):
     write_metric_runs(tmp_path, "auxss", SOLVED)
     write_metric_runs(tmp_path, "uniform_ss", FAILED)
-    lines = study_section(groups_in(tmp_path))
+    lines = study_section(study.answer_questions(groups_in(tmp_path)))
     assert "### 1. Does a safety-derived start distribution (AuxSS, Omega-SS) beat uniform and goal-distance " \
            "starts (U-SS, GoalDist-SS)?" in lines
     assert "**6 not run, 2 auxss ahead.**" in lines
@@ -117,4 +117,26 @@ def test_the_report_section_shows_each_comparison_with_its_effect_and_nothing_wi
     assert "| +1.00 [+0.61, +1.00] |" in row and row.endswith("| - | **auxss ahead** |")
     assert "| omega_ss against goaldist_ss | more robust | - | - | - | - | **not run** |" in lines
     write_metric_runs(tmp_path / "sac", "sac", FAILED)
-    assert study_section(groups_in(tmp_path / "sac")) == []
+    assert study_section(study.answer_questions(groups_in(tmp_path / "sac"))) == []
+
+
+def test_the_overview_names_each_tasks_decisions_and_the_questions_not_run(tmp_path):
+    # the decoy: AuxSS wins both aspects against U-SS; the narrow maze: the reverse curriculum beats AuxSS
+    write_metric_runs(tmp_path / "decoy", "auxss", SOLVED, env_id="LavaBridgeDecoy-v0")
+    write_metric_runs(tmp_path / "decoy", "uniform_ss", FAILED, env_id="LavaBridgeDecoy-v0")
+    write_metric_runs(tmp_path / "narrow", "auxss", FAILED, env_id="LavaBridgeNarrow-v0")
+    write_metric_runs(tmp_path / "narrow", "reverse_ss", SOLVED, env_id="LavaBridgeNarrow-v0")
+    answers = {task: study.answer_questions(groups_in(tmp_path / folder))
+               for task, folder in (("LavaBridgeDecoy-v0", "decoy"), ("LavaBridgeNarrow-v0", "narrow"))}
+    answers["LavaBridge-v0"] = []  # a task with none of the study's start distributions: no row
+    rows = [line for line in study_overview(answers) if line.startswith("| LavaBridge")]
+    assert rows == [
+        "| LavaBridgeDecoy-v0 | 1. safety-derived against undirected | 6 not run, 2 auxss ahead | "
+        "auxss ahead of uniform_ss: learns faster, more robust |",
+        "| LavaBridgeDecoy-v0 | 2. AuxSS against the reverse curriculum | not run | - |",
+        # the narrow maze's auxss fails against nothing: its first question's pairs need U-SS or GoalDist-SS
+        "| LavaBridgeNarrow-v0 | 1. safety-derived against undirected | not run | - |",
+        "| LavaBridgeNarrow-v0 | 2. AuxSS against the reverse curriculum | 2 reverse_ss ahead | "
+        "reverse_ss ahead of auxss: learns faster, more robust |",
+    ]
+    assert study_overview({"LavaBridge-v0": []}) == []
