@@ -19,7 +19,7 @@ class SACConfig:
 
     hidden_sizes: tuple[int, ...] = (64, 64)
     """Hidden layer widths of the actor and of each critic. 64 units update about 5x as fast as 256 on
-    2 CPU cores, and tuning runs at 64, 128 and 256 units did not separate the widths (README, Speed)."""
+    2 CPU cores, and tuning runs at 64, 128 and 256 units did not separate the widths (docs/speed.md, "Network size")."""
     lr: float = 3e-4
     """Adam learning rate of actor, critics and entropy coefficient."""
     gamma: float = 0.99

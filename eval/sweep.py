@@ -17,7 +17,7 @@ never the numbers.
 Splitting: each (method, demos) group's seeds are cut into contiguous chunks of near-equal size, as
 few as possible such that no job has more than --seeds-per-job seeds and the sweep has at least
 --workers jobs where there are seeds enough. Few big batches, because a batch of 25 seeds trains
-about 3x more seed-steps per second than one seed alone (README, Speed); enough jobs to keep every
+about 3x more seed-steps per second than one seed alone (docs/speed.md); enough jobs to keep every
 worker busy.
 
 Re-running a sweep continues it: a run whose final.pt exists and whose config.json matches is
