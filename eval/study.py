@@ -78,12 +78,17 @@ class Answer:
     """Why there is no `part`."""
 
     @property
+    def ahead(self) -> tuple[str, str] | None:
+        """(the side ahead, the side behind) where a test decided the comparison, else None."""
+        verdict = self.part.verdict if self.part is not None else None
+        return {SUPPORTED: (self.a, self.b), CONTRADICTED: (self.b, self.a)}.get(verdict)
+
+    @property
     def verdict(self) -> str:
         """Who is ahead, or why neither is: the findings' verdict read as an answer."""
         if self.part is None:
             return self.absent
-        return {SUPPORTED: f"{self.a} ahead", CONTRADICTED: f"{self.b} ahead"}.get(self.part.verdict,
-                                                                                 self.part.verdict)
+        return f"{self.ahead[0]} ahead" if self.ahead else self.part.verdict
 
 
 @dataclasses.dataclass(frozen=True)
@@ -104,9 +109,8 @@ class Question:
         learns faster, more robust'."""
         aspects: dict[tuple[str, str], list[str]] = {}
         for answer in self.answers:
-            if answer.part is not None and answer.part.verdict in (SUPPORTED, CONTRADICTED):
-                ahead, behind = (answer.a, answer.b) if answer.part.verdict == SUPPORTED else (answer.b, answer.a)
-                aspects.setdefault((ahead, behind), []).append(answer.aspect)
+            if answer.ahead:
+                aspects.setdefault(answer.ahead, []).append(answer.aspect)
         return [f"{ahead} ahead of {behind}: {', '.join(names)}" for (ahead, behind), names in aspects.items()]
 
 
