@@ -61,7 +61,7 @@ from lava_bridge_mj.eval.report_tables import (counted, findings_section, last_e
                                                pairwise_section, reach_table, runs_table, study_overview, study_section,
                                                threshold_table)
 from lava_bridge_mj.eval.study import Question, answer_questions
-from lava_bridge_mj.eval.summary import curriculum_progress, read_start_weights
+from lava_bridge_mj.eval.summary import CurriculumStall, curriculum_progress, curriculum_stall, read_start_weights
 from lava_bridge_mj.tasks import DEFAULT_ENV_ID
 from lava_bridge_mj.eval.sweep import seed_list
 
@@ -216,30 +216,56 @@ def _maze_section(groups: list[Group], threshold: float, where: str, out: Path, 
 def _curriculum_lines(groups: list[Group], warnings: list[str]) -> list[str]:
     """The paragraph and table of how far each reverse_ss seed's curriculum came (`curriculum_progress`).
     A start_weights.npz that cannot be read is passed over, with a line in `warnings`."""
-    rows = []
+    rows, stall_rows = [], []
     for group in benchmark_groups(groups, ("reverse_ss",)):
-        done, cells = 0, []
+        done, cells, stalls = 0, [], {}
         for run in group.runs:
             if not (run.path / "start_weights.npz").is_file():
                 cells.append(f"{run.seed}: -")
                 continue
             try:
                 step, back = curriculum_progress(run.path, run.rows[-1]["step"])
+                stall = curriculum_stall(run.path, run.rows[-1]["step"])
             except ValueError as error:
                 if not any(warning.startswith(str(error)) for warning in warnings):  # once, where the map named it
-                    warnings.append(f"{error}. The curriculum table does not use it.")
+                    warnings.append(f"{error}. The curriculum tables do not use it.")
                 cells.append(f"{run.seed}: unreadable")
                 continue
             done += step is not None
             cells.append(f"{run.seed}: " + (f"{step:,.0f}" if step is not None else
                                             f"{math.floor(100 * back)}% back" if back is not None else "not done"))
+            if stall is not None and stall.episodes:
+                stalls[run.seed] = stall
         rows.append(f"| {group.label} | {done} of {len(group.runs)} | {', '.join(cells)} |")
-    return ["How far each seed's curriculum came: the first evaluation from which every episode started from p0 "
-            "(the curriculum done), or, where it was not done by the seed's last evaluation, how far back along "
-            "the goal-reaching demo episodes its starts then were: the mean over the episodes of the start's "
-            "distance from the episode's last state, as a share of the episode (0% at the last state, 100% at "
-            "the first).", "",
-            "| group | curriculum done | per seed (seed: step done, or how far back) |", "|---|---:|---|", *rows]
+        if stalls:
+            stall_rows.append(_stall_row(group.label, stalls))
+    lines = ["How far each seed's curriculum came: the first evaluation from which every episode started from p0 "
+             "(the curriculum done), or, where it was not done by the seed's last evaluation, how far back along "
+             "the goal-reaching demo episodes its starts then were: the mean over the episodes of the start's "
+             "distance from the episode's last state, as a share of the episode (0% at the last state, 100% at "
+             "the first).", "",
+             "| group | curriculum done | per seed (seed: step done, or how far back) |", "|---|---:|---|", *rows]
+    if stall_rows:
+        lines += ["", "Where a seed's curriculum was not done, how the training episodes from its starts at its last "
+                  "evaluation ended (a start only moves back, so these are all the episodes from it): at the goal, "
+                  "at the episode's step limit (the curriculum's shortened one, capped by the env's), or in lava "
+                  "(the only other way an episode ends). Shares are of the episodes pooled over the seeds; a seed "
+                  "counts as *mostly at the time limit* when more of its episodes ended there than in lava.", "",
+                  "| group | unfinished seeds | episodes | at the goal | at the time limit | in lava | mostly at the "
+                  "time limit | per seed (seed: episodes, share at the time limit / in lava) |",
+                  "|---|---:|---:|---:|---:|---:|---:|---|", *stall_rows]
+    return lines
+
+
+def _stall_row(label: str, stalls: dict[int, CurriculumStall]) -> str:
+    """One group's row of the table of how its unfinished curricula's last episodes ended."""
+    episodes = sum(s.episodes for s in stalls.values())
+    shares = [f"{sum(getattr(s, name) for s in stalls.values()) / episodes:.2f}"
+              for name in ("goal", "time_limit", "lava")]
+    mostly = sum(s.time_limit > s.lava for s in stalls.values())
+    cells = ", ".join(f"{seed}: {s.episodes:,}, {s.time_limit / s.episodes:.2f} / {s.lava / s.episodes:.2f}"
+                      for seed, s in stalls.items())
+    return f"| {label} | {len(stalls)} | {episodes:,} | {' | '.join(shares)} | {mostly} of {len(stalls)} | {cells} |"
 
 
 def _task_sections(groups: list[Group], questions: list[Question], curves: dict, threshold: float, reps: int,
@@ -274,7 +300,8 @@ def _task_sections(groups: list[Group], questions: list[Question], curves: dict,
                f"none of {', '.join(START_STUDY)} has runs here.", START_STUDY)
     lines.extend(["", f"{heading} The maze and AuxSS's start weights", "",
                   *_maze_section(groups, threshold, where, out, warnings, prefix + "maze")])
-    if any((run.path / "start_weights.npz").is_file() for g in benchmark_groups(groups, ("reverse_ss",)) for run in g.runs):
+    curricula = benchmark_groups(groups, ("reverse_ss",))
+    if any((run.path / "start_weights.npz").is_file() for g in curricula for run in g.runs):
         skipped: list[str] = []  # its own, so the AuxSS section's notes are not repeated under it
         lines.extend(["", f"{heading} The reverse curriculum's start states", "",
                       *_maze_section(groups, threshold, where, out, skipped, prefix + "maze_reverse_ss", "reverse_ss"),

@@ -166,6 +166,37 @@ def _demo_episode_ids(demos: int, env_id: str) -> tuple[np.ndarray, np.ndarray]:
     return goal_reaching_demos(lava_bridge_mj.load_demos(demos, env_id=env_id))
 
 
+def _curriculum_starts(run_dir: Path, until: float):
+    """(done, starts, episode_states, ids) of a reverse_ss run by step `until`, from its start_weights.npz:
+    `done` the first evaluation step from which every episode started from p0 (None if none by
+    `until`); where it was not done, `starts` holds each goal-reaching demo episode's start index (into
+    `episode_states`) at the last evaluation by `until`. `starts` is None when the curriculum was done,
+    nothing was logged by `until`, or the file's candidates are not the run's demo episodes."""
+    path = run_dir / "start_weights.npz"
+    steps, states, probabilities = read_start_weights(path)
+    kept = steps <= until
+    steps, probabilities = steps[kept], probabilities[kept]
+    from_p0 = ~probabilities.any(axis=1) if probabilities.size else np.ones(len(steps), dtype=bool)
+    if from_p0.any():
+        return float(steps[np.argmax(from_p0)]), None, None, None
+    if not len(steps):
+        return None, None, None, None
+    config = read_config(run_dir)
+    episode_states, ids = _demo_episode_ids(int(config.get("demos", 500)),
+                                            str(config.get("env_id", lava_bridge_mj.ENV_ID)))
+    if episode_states.shape != states.shape or not np.array_equal(episode_states, states):
+        return None, None, None, None
+    starts = []
+    for episode in np.unique(ids):
+        rows = np.flatnonzero(ids == episode)
+        start = np.flatnonzero(probabilities[-1, rows] > 0)
+        if len(start) != 1:
+            raise ValueError(f"{path}: demo episode {episode} has {len(start)} start states at step "
+                             f"{steps[-1]:,.0f}, not one: not a reverse curriculum's start weights")
+        starts.append(int(rows[start[0]]))
+    return None, np.array(starts), episode_states, ids
+
+
 def curriculum_progress(run_dir: Path, until: float) -> tuple[float | None, float | None]:
     """How far a reverse_ss run's curriculum had come by step `until`, from its start_weights.npz.
 
@@ -177,29 +208,54 @@ def curriculum_progress(run_dir: Path, until: float) -> tuple[float | None, floa
     are not the run's goal-reaching demo episodes (nothing to measure along) or it logged no evaluation
     by `until`. ValueError naming the file when it cannot be read or does not hold one start per episode.
     """
-    path = run_dir / "start_weights.npz"
-    steps, states, probabilities = read_start_weights(path)
-    kept = steps <= until
-    steps, probabilities = steps[kept], probabilities[kept]
-    from_p0 = ~probabilities.any(axis=1) if probabilities.size else np.ones(len(steps), dtype=bool)
-    if from_p0.any():
-        return float(steps[np.argmax(from_p0)]), None
-    if not len(steps):
-        return None, None
-    config = read_config(run_dir)
-    episode_states, ids = _demo_episode_ids(int(config.get("demos", 500)),
-                                            str(config.get("env_id", lava_bridge_mj.ENV_ID)))
-    if episode_states.shape != states.shape or not np.array_equal(episode_states, states):
-        return None, None
+    done, starts, _, ids = _curriculum_starts(run_dir, until)
+    if starts is None:
+        return done, None
     shares = []
-    for episode in np.unique(ids):
+    for episode, start in zip(np.unique(ids), starts):
         rows = np.flatnonzero(ids == episode)
-        starts = np.flatnonzero(probabilities[-1, rows] > 0)
-        if len(starts) != 1:
-            raise ValueError(f"{path}: demo episode {episode} has {len(starts)} start states at step "
-                             f"{steps[-1]:,.0f}, not one: not a reverse curriculum's start weights")
-        shares.append((len(rows) - 1 - starts[0]) / max(len(rows) - 1, 1))
+        shares.append((rows[-1] - start) / max(len(rows) - 1, 1))
     return None, float(np.mean(shares))
+
+
+@dataclasses.dataclass(frozen=True)
+class CurriculumStall:
+    """How the training episodes from an unfinished curriculum's last starts ended."""
+
+    episodes: int
+    goal: int
+    time_limit: int
+    """Ended without the goal at the episode's step limit (the curriculum's shortened one, else the env's)."""
+    lava: int
+    """Ended without the goal before its limit: lava, the task's only other termination."""
+
+
+def curriculum_stall(run_dir: Path, until: float) -> CurriculumStall | None:
+    """Where a reverse_ss run's curriculum was not done by step `until`: how the training episodes that
+    started from its starts at the last evaluation by then (episodes.csv, up to `until`) ended. A start
+    index only moves back, so these are every episode from it. None when the curriculum was done, there is
+    no episode log, or its starts cannot be told (`curriculum_progress`'s None). The step limit of each
+    episode is the curriculum's own (`ReverseCurriculumSS.time_limit`, with the settings the run recorded
+    in provenance.json), capped by the env's."""
+    import gymnasium
+
+    from lava_bridge_mj.agents.reverse_curriculum import ReverseCurriculumSS
+
+    _, starts, episode_states, ids = _curriculum_starts(run_dir, until)
+    path = run_dir / "episodes.csv"
+    if starts is None or not path.exists():
+        return None
+    sessions = run_files.read_provenance(run_dir)
+    settings = sessions[-1].get("strategy") if sessions else None
+    config = read_config(run_dir)
+    curriculum = ReverseCurriculumSS(episode_states, ids, **(settings or config.get("strategy") or {}))
+    env_limit = gymnasium.spec(str(config.get("env_id", lava_bridge_mj.ENV_ID))).max_episode_steps
+    limits = {int(start): min(curriculum.time_limit(int(start)) or env_limit, env_limit) for start in starts}
+    log = [row for row in read_csv(path, EPISODE_COLUMNS + ("start_index", "length"))
+           if row["step"] <= until and int(row["start_index"]) in limits]
+    goal = sum(row["success"] > 0 for row in log)
+    time_limit = sum(row["success"] == 0 and row["length"] >= limits[int(row["start_index"])] for row in log)
+    return CurriculumStall(len(log), goal, time_limit, len(log) - goal - time_limit)
 
 
 def markdown(path: Path, threshold: float = THRESHOLD, start_room_until: float | None = None) -> str:

@@ -22,7 +22,7 @@ from rliable import metrics as rliable_metrics  # noqa: E402
 
 from lava_bridge_mj.eval import aggregate, cli, report, report_figures, report_groups  # noqa: E402
 from lava_bridge_mj.eval.config import METHODS, RunConfig  # noqa: E402
-from lava_bridge_mj.eval.run_files import METRIC_FIELDS  # noqa: E402
+from lava_bridge_mj.eval.run_files import EPISODE_FIELDS, METRIC_FIELDS  # noqa: E402
 
 BASE_CONFIG = RunConfig().to_dict()
 
@@ -465,11 +465,21 @@ def test_the_curriculum_table_measures_how_far_back_and_names_a_damaged_file_onc
              probabilities=probabilities)
     damaged = root / "seed1" / "start_weights.npz"
     damaged.write_bytes(b"\x80\x04garbage")
+    # seed 0's episodes from those starts (limits 8 + 168 // 3 = 64 and 8 + 170 // 3 = 64): two at the
+    # limit, one in lava, one at the goal; the one from an earlier start does not count
+    with open(root / "seed0" / "episodes.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=EPISODE_FIELDS)
+        writer.writeheader()
+        for number, (start, length, success) in enumerate(((168, 1, 1), (1, 64, 0), (169, 5, 0), (169, 30, 1),
+                                                            (1, 64, 0)), 1):
+            writer.writerow({"episode": number, "step": 100 * number, "start_index": start, "start_x": 0.0,
+                             "start_y": 0.0, "length": length, "success": success, "return": float(success)})
     assert report.main([str(tmp_path / "runs"), "--reps", "50", "--out", str(tmp_path / "out")]) == 0
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and str(damaged) in err
     text = (tmp_path / "out" / "report.md").read_text()
     assert "| reverse_ss (0.5K) | 0 of 2 | 0: 99% back, 1: unreadable |" in text
+    assert "| reverse_ss (0.5K) | 1 | 4 | 0.25 | 0.50 | 0.25 | 1 of 1 | 0: 4, 0.50 / 0.25 |" in text
     assert text.count(f"*Skipped: {damaged}") == 1
 
 

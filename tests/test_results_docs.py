@@ -157,6 +157,12 @@ CURRICULUM_ROW = (r"^\| group \| curriculum done \| per seed[^\n]*\n\|[-:|]+\|\n
 every seed's cell."""
 
 
+STALL_ROW = (r"^\| reverse_ss \(0\.5K\) on (LavaBridge\w*-v0) \| \d+ \| [\d,]+ \| [\d.]+ \| [\d.]+ \| [\d.]+ "
+             r"\| (\d+ of \d+) \|")
+"""The study report's row of how a task's unfinished curricula's episodes ended: task, the unfinished seeds
+whose episodes mostly ended at the time limit."""
+
+
 def test_results_md_says_how_far_the_reverse_curriculum_came_as_the_study_report_gives_it():
     # "N of M seeds finish the curriculum" in a task's subsection is the report's count for that task, and
     # "between A% and B% of the way back" the least and most of its unfinished seeds' shares
@@ -174,6 +180,16 @@ def test_results_md_says_how_far_the_reverse_curriculum_came_as_the_study_report
             assert (int(low), int(high)) == (min(table[task][1]), max(table[task][1])), task
     # every task with a curriculum table is described; the far start and the decoy are (checked by hand)
     assert set(said) == set(table) and {"LavaBridgeDecoy-v0", "LavaBridgeFarStart-v0"} <= set(said)
+    # "mostly at the time limit on K of N unfinished seeds" is the report's count, for every task whose
+    # unfinished curricula the report says how their episodes ended
+    endings = dict(re.findall(STALL_ROW, report, re.MULTILINE))
+    quoted = {}
+    for task, text in answered.items():
+        prose = " ".join(text.split())
+        for count in re.findall(r"mostly at the time limit on (\d+ of \d+) unfinished seeds", prose):
+            quoted[task] = count
+            assert count == endings[task], f"docs/results.md on {task}: {count}; the report: {endings[task]}"
+    assert set(quoted) == set(endings) and "LavaBridgeTwoCrossings-v0" in quoted
 
 
 def assert_quoted_from(prose, report_text, where):

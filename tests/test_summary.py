@@ -198,3 +198,48 @@ def test_summary_of_a_missing_directory_or_a_file(tmp_path, capsys):
         assert summary.main([str(path)]) == 2
         err = capsys.readouterr().err
         assert err == f"python -m lava_bridge_mj.eval.summary: error: {path} is not a directory\n"
+
+
+def test_curriculum_stall_counts_how_the_episodes_from_the_last_starts_ended_by_hand(tmp_path):
+    """The 0.5K set's goal-reaching episodes hold 169 and 170 states (indices 0-168 and 169-338). At the
+    last evaluation the starts are index 84 (85 steps back: limit 8 + 85 // 3 = 36) and index 169 (the
+    second episode's first state, 170 back: limit 8 + 170 // 3 = 64). Episodes from other starts, or
+    ending after `until`, do not count; one that reaches the goal on its limit's step is at the goal."""
+    import json
+
+    import lava_bridge_mj
+    from lava_bridge_mj.agents import goal_reaching_demos
+
+    run = tmp_path / "seed0"
+    write_run(run, [0.0, 0.0], [0.0, 0.0])
+    (run / "config.json").write_text('{"method": "reverse_ss", "demos": 500}')
+    states, _ = goal_reaching_demos(lava_bridge_mj.load_demos(500))
+    probabilities = np.zeros((2, len(states)))
+    probabilities[0, [168, 338]] = probabilities[1, [84, 169]] = 0.5
+    np.savez(run / "start_weights.npz", steps=np.array([1000, 2000]), states=states, probabilities=probabilities)
+    episodes = [  # (step ended, start index, length, success)
+        (100, 168, 1, 1), (1200, 84, 20, 1), (1300, 84, 36, 1), (1400, 84, 36, 0), (1500, 84, 35, 0),
+        (1600, 169, 64, 0), (1700, 169, 10, 0), (1800, -1, 500, 0), (2500, 84, 3, 0)]
+    with open(run / "episodes.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=EPISODE_FIELDS)
+        writer.writeheader()
+        for number, (step, start, length, success) in enumerate(episodes, 1):
+            writer.writerow({"episode": number, "step": step, "start_index": start, "start_x": 0.0, "start_y": 0.0,
+                             "length": length, "success": success, "return": float(success)})
+    assert summary.curriculum_stall(run, 2000) == summary.CurriculumStall(6, goal=2, time_limit=2, lava=2)
+    assert summary.curriculum_stall(run, 3000) == summary.CurriculumStall(7, goal=2, time_limit=2, lava=3)
+    # the limits come from the settings the run recorded: ratio 5 gives 8 + 85 // 5 = 25 and 8 + 170 // 5 =
+    # 42, which the episodes of length 35, 36 and 64 reached; with no ratio, the env's 500 steps none did
+    for ratio, expected in ((5.0, summary.CurriculumStall(6, goal=2, time_limit=3, lava=1)),
+                            (None, summary.CurriculumStall(6, goal=2, time_limit=0, lava=4))):
+        (run / "provenance.json").write_text(json.dumps([{"strategy": {"demo_horizon_to_max_steps_ratio": ratio}}]))
+        assert summary.curriculum_stall(run, 2000) == expected
+    # before the second evaluation the starts were each episode's last state, from which one episode ran
+    (run / "provenance.json").unlink()
+    assert summary.curriculum_stall(run, 1500) == summary.CurriculumStall(1, goal=1, time_limit=0, lava=0)
+    # a finished curriculum has no stall; nor has a run without an episode log
+    probabilities[1] = 0.0
+    np.savez(run / "start_weights.npz", steps=np.array([1000, 2000]), states=states, probabilities=probabilities)
+    assert summary.curriculum_stall(run, 2000) is None
+    (run / "episodes.csv").unlink()
+    assert summary.curriculum_stall(run, 1500) is None
