@@ -236,7 +236,8 @@ def curriculum_stall(run_dir: Path, until: float) -> CurriculumStall | None:
     index only moves back, so these are every episode from it. None when the curriculum was done, there is
     no episode log, or its starts cannot be told (`curriculum_progress`'s None). The step limit of each
     episode is the curriculum's own (`ReverseCurriculumSS.time_limit`, with the settings the run recorded
-    in provenance.json), capped by the env's."""
+    in provenance.json), capped by the env's; ValueError naming the run when those settings do not make one
+    (a setting the strategy no longer takes)."""
     import gymnasium
 
     from lava_bridge_mj.agents.reverse_curriculum import ReverseCurriculumSS
@@ -248,7 +249,12 @@ def curriculum_stall(run_dir: Path, until: float) -> CurriculumStall | None:
     sessions = run_files.read_provenance(run_dir)
     settings = sessions[-1].get("strategy") if sessions else None
     config = read_config(run_dir)
-    curriculum = ReverseCurriculumSS(episode_states, ids, **(settings or config.get("strategy") or {}))
+    settings = settings or config.get("strategy") or {}
+    try:
+        curriculum = ReverseCurriculumSS(episode_states, ids, **settings)
+    except (TypeError, ValueError) as error:  # a setting recorded by code that had it, or a bad value
+        raise ValueError(f"{run_dir}: the recorded reverse_ss settings {settings} do not make a reverse "
+                         f"curriculum here ({error})") from error
     env_limit = gymnasium.spec(str(config.get("env_id", lava_bridge_mj.ENV_ID))).max_episode_steps
     limits = {int(start): min(curriculum.time_limit(int(start)) or env_limit, env_limit) for start in starts}
     log = [row for row in read_csv(path, EPISODE_COLUMNS + ("start_index", "length"))

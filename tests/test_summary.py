@@ -234,6 +234,10 @@ def test_curriculum_stall_counts_how_the_episodes_from_the_last_starts_ended_by_
                             (None, summary.CurriculumStall(6, goal=2, time_limit=0, lava=4))):
         (run / "provenance.json").write_text(json.dumps([{"strategy": {"demo_horizon_to_max_steps_ratio": ratio}}]))
         assert summary.curriculum_stall(run, 2000) == expected
+    # a setting the strategy does not take (recorded by other code) is an error naming the run, not a TypeError
+    (run / "provenance.json").write_text(json.dumps([{"strategy": {"reverse_step": 2}}]))
+    with pytest.raises(ValueError, match=f"{run}: the recorded reverse_ss settings .*reverse_step"):
+        summary.curriculum_stall(run, 2000)
     # before the second evaluation the starts were each episode's last state, from which one episode ran
     (run / "provenance.json").unlink()
     assert summary.curriculum_stall(run, 1500) == summary.CurriculumStall(1, goal=1, time_limit=0, lava=0)
