@@ -51,15 +51,19 @@ bench: setup
 STUDY_STARTS := auxss,uniform_ss,omega_ss,goaldist_ss,reverse_ss
 STUDY_BASELINES := sac,hysac_auxss
 STUDY_SEEDS := 0-19
+# A sweep puts LavaBridge-v0's runs straight under its --out (the other tasks' under OUT/TASK), so the
+# reference task gets runs/study/LavaBridge-v0 as its --out: every task then has its own directory.
 STUDY_SWEEP := $(BIN)/lava-bridge-bench sweep --seeds $(STUDY_SEEDS) --eval-every 10000 \
-    --seeds-per-job 10 --workers 2 --threads 1 --out runs/study
+    --seeds-per-job 10 --workers 2 --threads 1
 study: setup
-	$(STUDY_SWEEP) --methods $(STUDY_STARTS) --envs LavaBridgeDecoy-v0,LavaBridgeFarStart-v0 --steps 100000
-	$(STUDY_SWEEP) --methods $(STUDY_STARTS) --envs LavaBridgeTwoCrossings-v0 --steps 300000
-	$(STUDY_SWEEP) --methods $(STUDY_STARTS) --envs LavaBridgeNarrow-v0,LavaBridge-v0 --steps 100000
+	$(STUDY_SWEEP) --methods $(STUDY_STARTS) --envs LavaBridgeDecoy-v0,LavaBridgeFarStart-v0 --steps 100000 --out runs/study
+	$(STUDY_SWEEP) --methods $(STUDY_STARTS) --envs LavaBridgeTwoCrossings-v0 --steps 300000 --out runs/study
+	$(STUDY_SWEEP) --methods $(STUDY_STARTS) --envs LavaBridgeNarrow-v0 --steps 100000 --out runs/study
+	$(STUDY_SWEEP) --methods $(STUDY_STARTS) --envs LavaBridge-v0 --steps 100000 --out runs/study/LavaBridge-v0
 	$(STUDY_SWEEP) --methods $(STUDY_BASELINES) \
-	    --envs LavaBridgeDecoy-v0,LavaBridgeFarStart-v0,LavaBridgeNarrow-v0,LavaBridge-v0 --steps 100000
-	$(STUDY_SWEEP) --methods $(STUDY_BASELINES) --envs LavaBridgeTwoCrossings-v0 --steps 300000
+	    --envs LavaBridgeDecoy-v0,LavaBridgeFarStart-v0,LavaBridgeNarrow-v0 --steps 100000 --out runs/study
+	$(STUDY_SWEEP) --methods $(STUDY_BASELINES) --envs LavaBridge-v0 --steps 100000 --out runs/study/LavaBridge-v0
+	$(STUDY_SWEEP) --methods $(STUDY_BASELINES) --envs LavaBridgeTwoCrossings-v0 --steps 300000 --out runs/study
 	$(BIN)/lava-bridge-bench export runs/study results/study
 
 # docs/results.md's tables and figures, regenerated from the committed metrics in results/ (no training):
