@@ -247,9 +247,8 @@ def curriculum_stall(run_dir: Path, until: float) -> CurriculumStall | None:
     if starts is None or not path.exists():
         return None
     sessions = run_files.read_provenance(run_dir)
-    settings = sessions[-1].get("strategy") if sessions else None
     config = read_config(run_dir)
-    settings = settings or config.get("strategy") or {}
+    settings = (sessions[-1].get("strategy") if sessions else None) or config.get("strategy") or {}
     try:
         curriculum = ReverseCurriculumSS(episode_states, ids, **settings)
     except (TypeError, ValueError) as error:  # a setting recorded by code that had it, or a bad value
