@@ -234,7 +234,7 @@ def _curriculum_lines(groups: list[Group], warnings: list[str]) -> list[str]:
             done += step is not None
             cells.append(f"{run.seed}: " + (f"{step:,.0f}" if step is not None else
                                             f"{math.floor(100 * back)}% back" if back is not None else "not done"))
-            if stall is not None and stall.episodes:
+            if stall is not None:
                 stalls[run.seed] = stall
         rows.append(f"| {group.label} | {done} of {len(group.runs)} | {', '.join(cells)} |")
         if stalls:
@@ -250,7 +250,9 @@ def _curriculum_lines(groups: list[Group], warnings: list[str]) -> list[str]:
                   "evaluation ended (a start only moves back, so these are all the episodes from it): at the goal, "
                   "at the episode's step limit (the curriculum's shortened one, capped by the env's), or in lava "
                   "(the only other way an episode ends). Shares are of the episodes pooled over the seeds; a seed "
-                  "counts as *mostly at the time limit* when more of its episodes ended there than in lava.", "",
+                  "counts as *mostly at the time limit* when more of its episodes ended there than in lava. A seed "
+                  "with no episode from its last starts had just moved them back when it stopped: still moving, "
+                  "not stalled.", "",
                   "| group | unfinished seeds | episodes | at the goal | at the time limit | in lava | mostly at the "
                   "time limit | per seed (seed: episodes, share at the time limit / in lava) |",
                   "|---|---:|---:|---:|---:|---:|---:|---|", *stall_rows]
@@ -260,11 +262,11 @@ def _curriculum_lines(groups: list[Group], warnings: list[str]) -> list[str]:
 def _stall_row(label: str, stalls: dict[int, CurriculumStall]) -> str:
     """One group's row of the table of how its unfinished curricula's last episodes ended."""
     episodes = sum(s.episodes for s in stalls.values())
-    shares = [f"{sum(getattr(s, name) for s in stalls.values()) / episodes:.2f}"
+    shares = [f"{sum(getattr(s, name) for s in stalls.values()) / episodes:.2f}" if episodes else "-"
               for name in ("goal", "time_limit", "lava")]
     mostly = sum(s.time_limit > s.lava for s in stalls.values())
     cells = ", ".join(f"{seed}: {s.episodes:,}, {s.time_limit / s.episodes:.2f} / {s.lava / s.episodes:.2f}"
-                      for seed, s in stalls.items())
+                      if s.episodes else f"{seed}: none since its starts last moved" for seed, s in stalls.items())
     return f"| {label} | {len(stalls)} | {episodes:,} | {' | '.join(shares)} | {mostly} of {len(stalls)} | {cells} |"
 
 

@@ -483,6 +483,36 @@ def test_the_curriculum_table_measures_how_far_back_and_names_a_damaged_file_onc
     assert text.count(f"*Skipped: {damaged}") == 1
 
 
+def test_an_unfinished_seed_with_no_episode_from_its_last_starts_is_counted_not_dropped(tmp_path):
+    """Seed 0 stalls (three episodes from its last starts, two at the limit of 64 steps, one in lava); seed 1
+    moved both starts back just before its last evaluation, so no episode started from them: it is one of
+    the two unfinished seeds and mostly at the time limit on 1 of 2, and the pooled shares are seed 0's."""
+    import lava_bridge_mj
+    from lava_bridge_mj.agents import goal_reaching_demos
+
+    root = tmp_path / "runs" / "reverse_ss-d500"
+    states, _ = goal_reaching_demos(lava_bridge_mj.load_demos(500))
+    for seed in (0, 1):
+        write_run(root / f"seed{seed}", method="reverse_ss", seed=seed, p0=[0.0, 0.1, 0.2])
+        probabilities = np.zeros((3, len(states)))
+        probabilities[:, [1, 169]] = 0.5
+        np.savez(root / f"seed{seed}" / "start_weights.npz", steps=np.array([1000, 2000, 3000]), states=states,
+                 probabilities=probabilities)
+        # seed 1's episodes all started one state later along each demo episode than its last starts
+        episodes = ((1, 64, 0), (169, 64, 0), (1, 5, 0)) if seed == 0 else ((2, 17, 1), (170, 17, 1))
+        with open(root / f"seed{seed}" / "episodes.csv", "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=EPISODE_FIELDS)
+            writer.writeheader()
+            for number, (start, length, success) in enumerate(episodes, 1):
+                writer.writerow({"episode": number, "step": 100 * number, "start_index": start, "start_x": 0.0,
+                                 "start_y": 0.0, "length": length, "success": success, "return": float(success)})
+    assert report.main([str(tmp_path / "runs"), "--reps", "50", "--out", str(tmp_path / "out")]) == 0
+    text = (tmp_path / "out" / "report.md").read_text()
+    assert "| reverse_ss (0.5K) | 0 of 2 | 0: 99% back, 1: 99% back |" in text
+    assert ("| reverse_ss (0.5K) | 2 | 3 | 0.00 | 0.67 | 0.33 | 1 of 2 | 0: 3, 0.67 / 0.33, "
+            "1: none since its starts last moved |") in text
+
+
 def fail_on_write(monkeypatch, name, error):
     """Make the atomic write of file `name` raise `error` after writing half of it, as a full disk does."""
     from lava_bridge_mj.eval import atomic
