@@ -152,22 +152,22 @@ def test_results_md_and_the_readme_give_the_studys_answers_task_by_task_as_the_s
 
 
 CURRICULUM_ROW = (r"^\| group \| curriculum done \| per seed[^\n]*\n\|[-:|]+\|\n"
-                  r"\| reverse_ss \(0\.5K\) on (LavaBridge\w*-v0) \| (\d+ of \d+) \| (.*) \|$")
-"""The study report's curriculum table of a task (one group): task, the seeds whose curriculum is done,
-every seed's cell."""
+                  r"\| reverse_ss \(0\.5K\)(?: on (LavaBridge\w*-v0))? \| (\d+ of \d+) \| (.*) \|$")
+"""The study report's curriculum table of a task (one group): task (empty for LavaBridge-v0, which a report
+does not name in its labels), the seeds whose curriculum is done, every seed's cell."""
 
 
-STALL_ROW = (r"^\| reverse_ss \(0\.5K\) on (LavaBridge\w*-v0) \| \d+ \| [\d,]+ \| [\d.]+ \| [\d.]+ \| [\d.]+ "
-             r"\| (\d+ of \d+) \|")
-"""The study report's row of how a task's unfinished curricula's episodes ended: task, the unfinished seeds
-whose episodes mostly ended at the time limit."""
+STALL_ROW = (r"^\| reverse_ss \(0\.5K\)(?: on (LavaBridge\w*-v0))? \| \d+ \| [\d,]+ \| [\d.-]+ \| [\d.-]+ "
+             r"\| [\d.-]+ \| (\d+ of \d+) \|")
+"""The study report's row of how a task's unfinished curricula's episodes ended: task (empty for
+LavaBridge-v0), the unfinished seeds whose episodes mostly ended at the time limit."""
 
 
 def test_results_md_says_how_far_the_reverse_curriculum_came_as_the_study_report_gives_it():
     # "N of M seeds finish the curriculum" in a task's subsection is the report's count for that task, and
     # "between A% and B% of the way back" the least and most of its unfinished seeds' shares
     report = (ROOT / "docs/report_study/report.md").read_text()
-    table = {task: (done, [int(share) for share in re.findall(r"(\d+)% back", cells)])
+    table = {task or lava_bridge_mj.ENV_ID: (done, [int(share) for share in re.findall(r"(\d+)% back", cells)])
              for task, done, cells in re.findall(CURRICULUM_ROW, report, re.MULTILINE)}
     answered = task_sections(section((ROOT / "docs/results.md").read_text(), "## The study on the task suite"), "###")
     said = {}
@@ -182,7 +182,7 @@ def test_results_md_says_how_far_the_reverse_curriculum_came_as_the_study_report
     assert set(said) == set(table) and {"LavaBridgeDecoy-v0", "LavaBridgeFarStart-v0"} <= set(said)
     # "mostly at the time limit on K of N unfinished seeds" is the report's count, for every task whose
     # unfinished curricula the report says how their episodes ended
-    endings = dict(re.findall(STALL_ROW, report, re.MULTILINE))
+    endings = {task or lava_bridge_mj.ENV_ID: count for task, count in re.findall(STALL_ROW, report, re.MULTILINE)}
     quoted = {}
     for task, text in answered.items():
         prose = " ".join(text.split())
