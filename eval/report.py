@@ -74,10 +74,11 @@ WEIGHT_SNAPSHOTS = 4
 
 def build_report(roots: Path | Sequence[Path], out: Path, threshold: float = THRESHOLD, reps: int = BOOTSTRAP_REPS,
                  runs: list[RunRecord] | None = None, budget: int | None = None,
-                 seeds: list[int] | None = None) -> Path:
+                 seeds: list[int] | None = None, all_pairs: bool = False) -> Path:
     """Write every figure and report.md for the runs under `roots` (one directory or several; or
     `runs`, found there already) into `out`; returns report.md's path. `budget` and `seeds` select
-    evaluations and runs as `find_runs` does. ValueError when a root holds no such run or a run's
+    evaluations and runs as `find_runs` does; `all_pairs` tests every pair of a task's groups in the
+    pairwise table instead of `comparison_pairs`'s. ValueError when a root holds no such run or a run's
     files cannot be used, OSError when `out` cannot be written: either way `out` is left as it was
     (everything is written into a temporary directory there first). Warnings (start weights that
     cannot be read) go to stderr and into report.md."""
@@ -90,7 +91,7 @@ def build_report(roots: Path | Sequence[Path], out: Path, threshold: float = THR
     out.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=".report-", dir=out))
     try:
-        warnings = _write_report(staging, roots, groups, curves, threshold, reps, budget, seeds)
+        warnings = _write_report(staging, roots, groups, curves, threshold, reps, budget, seeds, all_pairs)
         for warning in warnings:
             print(f"lava-bridge-bench report: warning: {warning}", file=sys.stderr)
         _publish(staging, out)
@@ -119,7 +120,7 @@ def _publish(staging: Path, out: Path) -> None:
 
 
 def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dict, threshold: float, reps: int,
-                  budget: int | None, seeds: list[int] | None) -> list[str]:
+                  budget: int | None, seeds: list[int] | None, all_pairs: bool = False) -> list[str]:
     """Every figure and report.md into `out`; returns the warnings. Runs of one task make the report's
     sections; runs of several tasks make one part per task (figures named TASK_NAME), since methods are
     compared within a task only, after a table of every task's answers to the study's questions."""
@@ -149,12 +150,13 @@ def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dic
     for task in tasks:
         mine = [g for g in groups if g.task == task]
         if len(tasks) == 1:
-            lines.extend(_task_sections(mine, answers[task], curves, threshold, reps, where, out, warnings, "##", ""))
+            lines.extend(_task_sections(mine, answers[task], curves, threshold, reps, where, out, warnings, "##", "",
+                                        all_pairs))
         else:
             lines.extend(["", f"## {task}", "",
                           f"{counted(sum(len(g.runs) for g in mine), 'run')} in {counted(len(mine), 'group')}."])
             lines.extend(_task_sections(mine, answers[task], curves, threshold, reps, where, out, warnings, "###",
-                                        f"{task}_"))
+                                        f"{task}_", all_pairs))
     atomic_write_text(out / "report.md", "\n".join(lines) + "\n")
     return warnings
 
@@ -271,7 +273,8 @@ def _stall_row(label: str, stalls: dict[int, CurriculumStall]) -> str:
 
 
 def _task_sections(groups: list[Group], questions: list[Question], curves: dict, threshold: float, reps: int,
-                   where: str, out: Path, warnings: list[str], heading: str, prefix: str) -> list[str]:
+                   where: str, out: Path, warnings: list[str], heading: str, prefix: str,
+                   all_pairs: bool = False) -> list[str]:
     """The figures and tables of the groups of one task, with its answers to the study's questions,
     under `heading`-level titles, figure files named `prefix` + name."""
     from lava_bridge_mj.eval.config import METHODS
@@ -313,7 +316,7 @@ def _task_sections(groups: list[Group], questions: list[Question], curves: dict,
     lines.extend(["", f"{heading} Over the last third of training", "", *late_table(groups, reps)])
     lines.extend(["", f"{heading} Steps to p0 success >= {threshold:g}", "", *threshold_table(groups, threshold)])
     lines.extend(["", f"{heading} Seeds reaching p0 success >= {threshold:g}", "", *reach_table(groups, threshold)])
-    lines.extend(["", f"{heading} Pairwise tests", "", *pairwise_section(groups, threshold)])
+    lines.extend(["", f"{heading} Pairwise tests", "", *pairwise_section(groups, threshold, all_pairs)])
     if threshold == THRESHOLD and groups[0].task == DEFAULT_ENV_ID:  # the paper's claims: 0.8, its maze
         lines.extend(["", f"{heading} The paper's findings", "", *findings_section(groups, heading)])
     study = study_section(questions, heading)
@@ -340,6 +343,10 @@ def main(argv: list[str] | None = None) -> int:
                              "300000 with runs stopped at 100000 (default: every evaluation)")
     parser.add_argument("--seeds", type=seed_list, default=None,
                         help="only these seeds' runs, e.g. 0-4 or 0,3,5-7 (default: every run)")
+    parser.add_argument("--all-pairs", action="store_true",
+                        help="test every pair of a task's groups in the pairwise table, e.g. each variant against "
+                             "every other method too (default: the pairs the study and the paper's comparisons "
+                             "need, each variant against its method's default)")
     args = parser.parse_args(argv)
     if not 1 <= args.reps <= MAX_REPS:
         parser.error(f"--reps must be in 1-{MAX_REPS:,}, got {args.reps}")
@@ -357,7 +364,8 @@ def main(argv: list[str] | None = None) -> int:
     unchanged = f"{out} is left as it was" if out.exists() else "nothing written"
     previous = signal.signal(signal.SIGTERM, _interrupt) if _in_main_thread() else None
     try:
-        report = build_report(args.dirs, out, args.threshold, args.reps, runs, args.budget, args.seeds)
+        report = build_report(args.dirs, out, args.threshold, args.reps, runs, args.budget, args.seeds,
+                              args.all_pairs)
     except ValueError as error:  # a run's files cannot be used (its config makes no maze, ...)
         return _error(f"{error}; {unchanged}")
     except OSError as error:  # a full disk, a directory that turned read-only, ...

@@ -8,6 +8,7 @@ lines, text and rows; eval/aggregate.py and eval/statistics.py hold the arithmet
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -111,10 +112,12 @@ def counted(number: int, noun: str) -> str:
     return f"{number} {noun}{'' if number == 1 else 's'}"
 
 
-def pairwise_section(groups: list[Group], threshold: float) -> list[str]:
-    """The pairwise table: every test of eval/statistics.py for each of `comparison_pairs`."""
+def pairwise_section(groups: list[Group], threshold: float, all_pairs: bool = False) -> list[str]:
+    """The pairwise table: every test of eval/statistics.py for each of `comparison_pairs` (every pair of
+    `groups` with `all_pairs`)."""
     compared, skipped = [], []
-    for a, b in comparison_pairs(groups):
+    pairs = list(itertools.combinations(groups, 2)) if all_pairs else comparison_pairs(groups)
+    for a, b in pairs:
         until = min(a.steps[-1], b.steps[-1]) if len(a.steps) and len(b.steps) else None
         outcomes = [stats.seed_outcomes(g, threshold, until) for g in (a, b)] if until is not None else [None]
         if None in outcomes:

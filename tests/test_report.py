@@ -222,6 +222,31 @@ def test_groups_are_picked_by_method_and_demo_set_and_described_by_the_registry(
         ("auxss (0.5K)", "hysac (0.5K)"), ("auxss (0.5K)", "auxss (7.5K)"), ("auxss (0.5K)", auxss[1])]
 
 
+def test_all_pairs_adds_the_variant_against_the_other_methods_and_corrects_over_every_pair(tmp_path):
+    # AuxSS, the reverse curriculum and its variant without the time limit, two seeds each: by default the
+    # variant is tested against its own method only (2 pairs); --all-pairs also tests it against AuxSS (3)
+    for name, method, strategy in (("a", "auxss", {}), ("r", "reverse_ss", {}),
+                                   ("v", "reverse_ss", {"demo_horizon_to_max_steps_ratio": None})):
+        for seed, p0 in ((0, [0.0, 0.9]), (1, [0.5, 1.0])):
+            write_run(tmp_path / "runs" / name / f"seed{seed}", method=method, seed=seed, p0=p0, strategy=strategy)
+    variant = "reverse_ss (0.5K) [strategy.demo_horizon_to_max_steps_ratio=null]"
+
+    def pairs(*flags):
+        out = tmp_path / f"out{len(flags)}"
+        assert report.main([str(tmp_path / "runs"), "--reps", "50", "--out", str(out), *flags]) == 0
+        text = (out / "report.md").read_text()
+        table = text[text.index("## Pairwise tests"):text.index("\n## ", text.index("## Pairwise tests") + 1)]
+        return re.findall(r"^\| ([^|]+) \| ([^|]+) \| [\d,]+ \|", table, re.MULTILINE), table
+
+    default, table = pairs()
+    assert default == [("auxss (0.5K)", "reverse_ss (0.5K)"), ("reverse_ss (0.5K)", variant)]
+    assert "across the 2 pairs of this table" in table
+    every, table = pairs("--all-pairs")
+    assert sorted(every) == [("auxss (0.5K)", "reverse_ss (0.5K)"), ("auxss (0.5K)", variant),
+                             ("reverse_ss (0.5K)", variant)]
+    assert "across the 3 pairs of this table" in table
+
+
 def test_labels_name_only_what_differs_from_the_defaults(tmp_path):
     # the LayerNorm variant beside HySAC as configured by default: both configs spell the entry out
     sac = RunConfig().to_dict()["sac"]
