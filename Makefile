@@ -70,7 +70,8 @@ study: setup
 # every method at the 100k protocol budget, AuxSS, SAC and Omega-SS at the paper's 300k, the AuxSS ablations,
 # the start-strategy calibration on the tuning seeds (docs/calibration.md), and the task suite's screening
 # (at 100k, and the two crossings extended to the paper's 300k), and the study's finished runs (make study;
-# each task at the budget it was trained to, so no --budget).
+# each task at the budget it was trained to, so no --budget), and the far start's reverse curriculum with and
+# without its shortened time limit beside AuxSS (results/study_ablations).
 report: setup
 	$(BIN)/lava-bridge-bench report results/protocol --budget 100000 --out docs/report
 	$(BIN)/lava-bridge-bench report results/protocol/auxss-d500 results/protocol/sac-d500 results/protocol/omega_ss-d500 \
@@ -87,6 +88,9 @@ report: setup
 	$(BIN)/lava-bridge-bench report results/suite/screening/LavaBridgeTwoCrossings-v0 --budget 300000 --seeds 100-104 \
 	    --out docs/report_screening_300k
 	$(BIN)/lava-bridge-bench report results/study --seeds $(STUDY_SEEDS) --out docs/report_study
+	$(BIN)/lava-bridge-bench report results/study/LavaBridgeFarStart-v0/auxss-d500 \
+	    results/study/LavaBridgeFarStart-v0/reverse_ss-d500 results/study_ablations/LavaBridgeFarStart-v0 \
+	    --seeds $(STUDY_SEEDS) --all-pairs --out docs/report_reverse_limit
 
 setup: gl $(STAMP)
 

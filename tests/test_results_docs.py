@@ -25,7 +25,8 @@ COMMANDS = makefile_commands("report", "report")
 def test_the_report_target_makes_every_committed_report():
     assert [argv[argv.index("--out") + 1] for argv in COMMANDS] == [
         "docs/report", "docs/report_300k", "docs/report_ablations", "docs/report_calibration",
-        "docs/report_calibration_confirm", "docs/report_screening", "docs/report_screening_300k", "docs/report_study"]
+        "docs/report_calibration_confirm", "docs/report_screening", "docs/report_screening_300k", "docs/report_study",
+        "docs/report_reverse_limit"]
 
 
 @pytest.mark.parametrize("argv", COMMANDS, ids=[argv[argv.index("--out") + 1] for argv in COMMANDS])
@@ -266,3 +267,21 @@ def test_every_folder_of_results_is_described_in_its_readme():
     first_column = re.findall(r"^\| ([^|]+) \|", (ROOT / "results/README.md").read_text(), re.MULTILINE)
     described = {name.split("/")[0] for cell in first_column for name in re.findall(r"`([\w/.-]+)/`", cell)}
     assert {path.name for path in (ROOT / "results").iterdir() if path.is_dir()} <= described
+
+
+def test_results_md_on_the_reverse_curriculums_time_limit_quotes_its_report():
+    # every count and decimal of the section, table included, is in docs/report_reverse_limit, whose three
+    # groups it describes; the report tests all three pairs
+    report = (ROOT / "docs/report_reverse_limit/report.md").read_text()
+    quoted = section((ROOT / "docs/results.md").read_text(),
+                     "## The reverse curriculum without its shortened time limit, on the far start")
+    assert_quoted_from(quoted, report, "docs/results.md on the reverse curriculum's time limit")
+    assert "across the 3 pairs of this table" in report
+    done = dict(re.findall(r"^\| reverse_ss \(0\.5K\)( \[strategy\.demo_horizon_to_max_steps_ratio=null\])? on "
+                           r"LavaBridgeFarStart-v0 \| (\d+ of \d+) \| 0: ", report, re.MULTILINE))  # the curriculum table
+    assert f"finishes on {done[' [strategy.demo_horizon_to_max_steps_ratio=null]'].split()[0]} of 20 seeds instead of " \
+           f"{done[''].split()[0]}" in " ".join(quoted.split())
+    # and so is every number of the README's sentence on it
+    readme = " ".join((ROOT / "README.md").read_text().split())
+    sentence = readme[readme.index("On the far start that lead is owed"):]
+    assert_quoted_from(sentence[:sentence.index("report_reverse_limit/report.md))")], report, "the README on the time limit")
