@@ -173,6 +173,31 @@ def test_results_md_gives_auxss_against_the_reverse_curriculum_on_every_task_as_
     assert rows == expected and {row[0] for row in rows} == set(lava_bridge_mj.SUITE)
 
 
+BASELINE_ROW = r"^\| (LavaBridge\w*-v0) \| ([^|]+) \| ([^|]+) \| ([^|]+) \| ([^|]+) \|$"
+"""A row of results.md's table of AuxSS against the baselines: task, then per baseline (SAC, HySAC+AuxSS)
+the reach counts and the pairwise table's verdict, or 'not run' twice."""
+
+
+def test_results_md_gives_auxss_against_the_baselines_on_every_task_as_the_study_report_does():
+    # one row per task of the suite; a baseline's cells are the reach counts and verdict of the report's
+    # pairwise row "auxss (0.5K) | BASELINE (0.5K)" on that task, or 'not run' where the report has none
+    report = (ROOT / "docs/report_study/report.md").read_text()
+    parts = report_parts(report)
+    expected = []
+    for task in sorted(lava_bridge_mj.SUITE):
+        row = [task]
+        for baseline in ("sac", "hysac_auxss"):
+            found = re.search(rf"^\| auxss \(0\.5K\) \| {baseline} \(0\.5K\) \| [\d,]+ \| (\d+/\d+, \d+/\d+) \|"
+                              rf".* \| ([^|]+) \|$", section(parts.get(task, ""), "### Pairwise tests")
+                              if task in parts else "", re.MULTILINE)
+            row += [found[1], found[2].strip()] if found else ["not run", "not run"]
+        expected.append(tuple(row))
+    quoted = section((ROOT / "docs/results.md").read_text(), "## The study on the task suite")
+    rows = [tuple(cell.strip() for cell in row) for row in re.findall(BASELINE_ROW, quoted, re.MULTILINE)
+            if row[1].strip() == "not run" or re.fullmatch(r"\d+/\d+, \d+/\d+", row[1].strip())]
+    assert rows == expected
+
+
 def test_the_readmes_summary_in_words_still_says_what_the_study_report_decides():
     # the README's paragraph under the answers table names which comparisons a test decided, task by task; when
     # a new group changes that, this fails until the paragraph is rewritten
