@@ -83,6 +83,10 @@ class Part:
     """Each test's raw and Holm-adjusted p-value; empty for a claim about one group."""
     power: str = ""
     """The power to detect the claimed effect and the seeds needed, where no test rejected."""
+    seeds_needed: int | None = None
+    """Where no test of a comparison rejected: the fewest seeds per group that give Fisher's test `POWER`
+    to detect `EFFECT` around the observed rates (`power_text`); None where a test rejected, for a claim
+    about one group, and beyond `stats.MAX_SEEDS`."""
 
 
 def is_default(group: Group) -> bool:
@@ -200,15 +204,16 @@ def claimed_rates(events_a: int, seeds_a: int, events_b: int, seeds_b: int) -> t
     return low + EFFECT, low
 
 
-def power_text(counts: tuple[int, int, int, int]) -> tuple[float, str]:
-    """The power of Fisher's test to detect `EFFECT` around the pooled rate with these seeds, and its text."""
+def power_text(counts: tuple[int, int, int, int]) -> tuple[float, int | None, str]:
+    """The power of Fisher's test to detect `EFFECT` around the pooled rate with these seeds, the seeds
+    per group that give `POWER` (None beyond `stats.MAX_SEEDS`), and the two in words."""
     high, low = claimed_rates(*counts)
     power = stats.power(high, low, counts[1], counts[3])
     needed = stats.seeds_needed(high, low)
     text = (f"power {power:.2f} to detect {high:.2f} against {low:.2f}; "
             + (f"{needed} seeds per group give {POWER:.0%}" if needed else f"more than {stats.MAX_SEEDS} seeds "
                f"per group needed for {POWER:.0%}"))
-    return power, text
+    return power, needed, text
 
 
 def settle(pending: list[Pending], untested: int = 0) -> list[Part]:
@@ -226,7 +231,7 @@ def settle(pending: list[Pending], untested: int = 0) -> list[Part]:
             tests.append(f"{name} p = {p:.3g} (Holm {adj:.3g})" if math.isfinite(p) else f"{name}: no test")
             if math.isfinite(adj) and adj <= ALPHA and c.a_ahead[name] is not None:
                 rejected.add(c.a_ahead[name])
-        power, text = power_text(c.counts)
+        power, needed, text = power_text(c.counts)
         if c.matches:
             verdict = CONTRADICTED if rejected else SUPPORTED if power >= POWER else UNDECIDED
         elif rejected == {True}:
@@ -235,7 +240,8 @@ def settle(pending: list[Pending], untested: int = 0) -> list[Part]:
             verdict = CONTRADICTED
         else:
             verdict = NO_DIFFERENCE if power >= POWER and not rejected else UNDECIDED
-        parts.append(Part(c.claim, c.measured, verdict, "; ".join(tests), "" if rejected else text))
+        parts.append(Part(c.claim, c.measured, verdict, "; ".join(tests), "" if rejected else text,
+                          None if rejected else needed))
     return parts
 
 

@@ -220,11 +220,15 @@ def study_overview(answers: dict[str, list[Question]]) -> list[str]:
     if not answered:
         return []
     lines = ["Each task's answers to the study's questions, from its section \"The study's questions\" below: "
-             "how many of a question's comparisons give each verdict, and the comparisons a test decided.", "",
-             "| task | question | verdicts | decided |", "|---|---|---|---|"]
+             "how many of a question's comparisons give each verdict, the comparisons a test decided, and the "
+             f"seeds per group that would give Fisher's test {POWER:.0%} power to detect a difference of "
+             f"{EFFECT:g} in the rate on the comparisons that are *not enough seeds to decide* (their range; "
+             "'-' where none is): what more seeds for the task would have to reach.", "",
+             "| task | question | verdicts | decided | seeds needed where undecided |", "|---|---|---|---|---:|"]
     for task, questions in answered.items():
         for number, (short, text, _) in enumerate(QUESTIONS, 1):
             question = questions.get(text)
             lines.append(f"| {task} | {number}. {short} | {question.summary if question else 'not run'} | "
-                         f"{'; '.join(question.decided) if question and question.decided else '-'} |")
+                         f"{'; '.join(question.decided) if question and question.decided else '-'} | "
+                         f"{question.seeds_to_decide if question else '-'} |")
     return lines

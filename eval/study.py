@@ -38,10 +38,11 @@ from __future__ import annotations
 
 import collections
 import dataclasses
+import math
 
 from lava_bridge_mj.eval import statistics as stats
 from lava_bridge_mj.eval.aggregate import Group
-from lava_bridge_mj.eval.claims import (CONTRADICTED, NOT_RUN, SUPPORTED, Part, pick, reach_comparison,
+from lava_bridge_mj.eval.claims import (CONTRADICTED, NOT_RUN, SUPPORTED, UNDECIDED, Part, pick, reach_comparison,
                                         robust_comparison, settle)
 
 SAFETY = ("auxss", "omega_ss")
@@ -112,6 +113,23 @@ class Question:
             if answer.ahead:
                 aspects.setdefault(answer.ahead, []).append(answer.aspect)
         return [f"{ahead} ahead of {behind}: {', '.join(names)}" for (ahead, behind), names in aspects.items()]
+
+    @property
+    def seeds_to_decide(self) -> str:
+        """The seeds per group that would give Fisher's test 80% power on the comparisons short of it (the
+        power column of each *not enough seeds to decide*), as a range: '21-48'; '-' when none is short.
+        What a seed extension of this task needs, the most demanding comparison setting it."""
+        needed = [a.part.seeds_needed for a in self.answers if a.part is not None and a.part.verdict == UNDECIDED]
+        if not needed:
+            return "-"
+        shown = [f"> {stats.MAX_SEEDS}" if n is None else str(n)
+                 for n in (min(needed, key=_beyond_last), max(needed, key=_beyond_last))]
+        return shown[0] if shown[0] == shown[1] else f"{shown[0]} to {shown[1]}"
+
+
+def _beyond_last(needed: int | None) -> float:
+    """Orders seeds-needed counts with None (beyond the largest count computed) last."""
+    return math.inf if needed is None else needed
 
 
 def answer_questions(groups: list[Group]) -> list[Question]:

@@ -136,8 +136,9 @@ def test_results_md_answers_the_study_per_task_as_the_study_report_gives_it():
     assert_quoted_from(paragraph[:paragraph.index("\n\n")], report_text, "the README's study paragraph")
 
 
-OVERVIEW_ROW = r"^\| (LavaBridge\w*-v0) \| (\d\. [^|]+) \| ([^|]+) \| ([^|]+) \|$"
-"""A row of the study's answers, task by task: task, question, verdict counts, decided comparisons."""
+OVERVIEW_ROW = r"^\| (LavaBridge\w*-v0) \| (\d\. [^|]+) \| ([^|]+) \| ([^|]+) \| ([^|]+) \|$"
+"""A row of the study's answers, task by task: task, question, verdict counts, decided comparisons, seeds
+needed where undecided."""
 
 
 def test_results_md_and_the_readme_give_the_studys_answers_task_by_task_as_the_study_report_does():
@@ -203,7 +204,7 @@ def test_the_readmes_summary_in_words_still_says_what_the_study_report_decides()
     # a new group changes that, this fails until the paragraph is rewritten
     report = (ROOT / "docs/report_study/report.md").read_text()
     decided = {(task, question[0]): cell.strip()
-               for task, question, _, cell in re.findall(OVERVIEW_ROW, section(report, "## The study's answers, task by task"),
+               for task, question, _, cell, _ in re.findall(OVERVIEW_ROW, section(report, "## The study's answers, task by task"),
                                                          re.MULTILINE) if cell.strip() != "-"}
     assert decided == {
         ("LavaBridgeNarrow-v0", "1"): "auxss ahead of uniform_ss: learns faster, more robust",

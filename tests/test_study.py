@@ -132,11 +132,30 @@ def test_the_overview_names_each_tasks_decisions_and_the_questions_not_run(tmp_p
     rows = [line for line in study_overview(answers) if line.startswith("| LavaBridge")]
     assert rows == [
         "| LavaBridgeDecoy-v0 | 1. safety-derived against undirected | 6 not run, 2 auxss ahead | "
-        "auxss ahead of uniform_ss: learns faster, more robust |",
-        "| LavaBridgeDecoy-v0 | 2. AuxSS against the reverse curriculum | not run | - |",
+        "auxss ahead of uniform_ss: learns faster, more robust | - |",
+        "| LavaBridgeDecoy-v0 | 2. AuxSS against the reverse curriculum | not run | - | - |",
         # the narrow maze's auxss fails against nothing: its first question's pairs need U-SS or GoalDist-SS
-        "| LavaBridgeNarrow-v0 | 1. safety-derived against undirected | not run | - |",
+        "| LavaBridgeNarrow-v0 | 1. safety-derived against undirected | not run | - | - |",
         "| LavaBridgeNarrow-v0 | 2. AuxSS against the reverse curriculum | 2 reverse_ss ahead | "
-        "reverse_ss ahead of auxss: learns faster, more robust |",
+        "reverse_ss ahead of auxss: learns faster, more robust | - |",
     ]
     assert study_overview({"LavaBridge-v0": []}) == []
+
+
+def test_the_seeds_a_question_needs_span_its_undecided_comparisons_power_columns(tmp_path):
+    # AuxSS and U-SS solve every seed: tied, so Fisher's test is asked to detect 1.00 against 0.70 around
+    # the pooled rate 1, which 21 seeds per group do (the reports' power column); Omega-SS solves 5 of 10
+    # (Fisher p = 0.0325 against U-SS, far from rejecting after Holm over 16): pooled 0.75, so 0.90
+    # against 0.60. A decided comparison asks for nothing.
+    half = {seed: [0.0, 1.0] if seed < 5 else [0.0, 0.0] for seed in range(10)}
+    question = safety_question(answers(tmp_path, {"auxss": SOLVED, "uniform_ss": SOLVED, "omega_ss": half}))
+    undecided = {(a.a, a.aspect): a.part.seeds_needed for a in question.answers if a.part is not None}
+    assert {a.verdict for a in question.answers if a.part is not None} == {"not enough seeds to decide"}
+    assert undecided[("auxss", "learns faster")] == undecided[("auxss", "more robust")] == 21
+    wider = study.stats.seeds_needed(0.9, 0.6)
+    assert undecided[("omega_ss", "learns faster")] == wider and wider > 21
+    assert question.seeds_to_decide == f"21 to {wider}"
+    assert study_overview({"LavaBridge-v0": [question]})[-2].endswith(f"| 21 to {wider} |")
+    # all decided: nothing to add
+    decided = safety_question(answers(tmp_path / "decided", {"auxss": SOLVED, "uniform_ss": FAILED}))
+    assert decided.seeds_to_decide == "-"
