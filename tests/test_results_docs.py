@@ -287,6 +287,30 @@ def test_results_md_says_which_of_the_studys_runs_are_finished_as_results_study_
         assert names["finished"] == complete and names["still"] == set(planned[task][1]) - complete, task
 
 
+def test_the_seed_extension_trains_exactly_the_groups_the_study_report_leaves_undecided():
+    # read against the 20-seed report: every group of a comparison that is not enough seeds to decide, on its
+    # task at the study's budget, from the seed after the study's last to the most seeds the answers table asks
+    # for; groups whose every comparison is decided (or that no question compares) stay at the study's seeds
+    report_text = (ROOT / "docs/report_study/report.md").read_text()
+    open_groups = {(task, method) for task, rows in study_rows(report_text).items()
+                   for pair, _, _, verdict in rows if verdict == "not enough seeds to decide"
+                   for method in pair.split(" against ")}
+    study_steps = {task: sweep["--steps"] for sweep in makefile_sweeps("study") for task in sweep["--envs"].split(",")}
+    extension = makefile_sweeps("study-extension")
+    cells = [(task, method) for sweep in extension for task in sweep["--envs"].split(",")
+             for method in sweep["--methods"].split(",")]
+    assert len(cells) == len(set(cells)) and set(cells) == open_groups
+    needed = [int(n) for n in re.findall(r"\| \d+ to (\d+) \|$", section(report_text, "## The study's answers, task by task"),
+                                         re.MULTILINE)]
+    study_first, study_last = map(int, makefile_sweeps("study")[0]["--seeds"].split("-"))
+    options = {key: value for key, value in makefile_sweeps("study")[0].items() if key not in ("--methods", "--envs", "--steps", "--out")}
+    for sweep in extension:
+        assert sweep["--seeds"] == f"{study_last + 1}-{study_first + max(needed) - 1}"
+        assert all(sweep["--steps"] == study_steps[task] for task in sweep["--envs"].split(","))
+        assert {key: value for key, value in sweep.items() if key in options and key != "--seeds"} == \
+            {key: value for key, value in options.items() if key != "--seeds"}
+
+
 def test_every_folder_of_results_is_described_in_its_readme():
     # results/README.md says how each folder's runs were made and by which commit; a folder it does not
     # name would be metrics without a command
