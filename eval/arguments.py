@@ -30,6 +30,17 @@ def int_at_least(minimum: int, what: str, maximum: int | None = None):
 
 
 positive_int = int_at_least(1, "a positive integer")
+
+
+def two_looks(text: str) -> tuple[int, int]:
+    """An argparse type: 'FIRST,SECOND', the seeds per group of a study's two readings, 0 < FIRST < SECOND."""
+    parts = text.split(",")
+    if len(parts) != 2 or not all(part.strip().isdigit() for part in parts):
+        raise argparse.ArgumentTypeError(f"expected two seed counts FIRST,SECOND such as 20,49, got {text!r}")
+    first, second = (int(part) for part in parts)
+    if not 0 < first < second:
+        raise argparse.ArgumentTypeError(f"expected 0 < FIRST < SECOND seeds per group, got {first},{second}")
+    return first, second
 seed = int_at_least(0, f"an integer seed in [0, {MAX_SEED}]", MAX_SEED)
 
 

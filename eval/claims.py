@@ -216,11 +216,12 @@ def power_text(counts: tuple[int, int, int, int]) -> tuple[float, int | None, st
     return power, needed, text
 
 
-def settle(pending: list[Pending], untested: int = 0) -> list[Part]:
-    """The verdicts of the comparisons, their p-values Holm-corrected as one family. `untested` p-values
-    of the family are not computed yet (comparisons whose runs are still to come): each counts as 1, so
-    the correction is over the whole family, and as Holm's adjusted p-values never rise when another
-    p-value falls, a rejection made now stands once they are computed."""
+def settle(pending: list[Pending], untested: int = 0, alpha: float = ALPHA) -> list[Part]:
+    """The verdicts of the comparisons, their p-values Holm-corrected as one family and rejected at
+    `alpha` (the power beside a verdict stays at `ALPHA`). `untested` p-values of the family are not
+    computed yet (comparisons whose runs are still to come): each counts as 1, so the correction is over
+    the whole family, and as Holm's adjusted p-values never rise when another p-value falls, a rejection
+    made now stands once they are computed."""
     raw = [p for c in pending for p in c.p.values()]
     adjusted = iter(stats.holm(raw + [1.0] * untested))
     parts = []
@@ -229,7 +230,7 @@ def settle(pending: list[Pending], untested: int = 0) -> list[Part]:
         for name, p in c.p.items():
             adj = next(adjusted)
             tests.append(f"{name} p = {p:.3g} (Holm {adj:.3g})" if math.isfinite(p) else f"{name}: no test")
-            if math.isfinite(adj) and adj <= ALPHA and c.a_ahead[name] is not None:
+            if math.isfinite(adj) and adj <= alpha and c.a_ahead[name] is not None:
                 rejected.add(c.a_ahead[name])
         power, needed, text = power_text(c.counts)
         if c.matches:

@@ -54,6 +54,7 @@ from lava_bridge_mj.eval.atomic import nearest_existing
 from lava_bridge_mj.eval.aggregate import (BOOTSTRAP_REPS, BOOTSTRAP_SEED, METRICS, THRESHOLD, Group, RunRecord,
                                            find_runs, group_runs, iqm_curves)
 from lava_bridge_mj.eval.arguments import format_seeds, in_main_thread as _in_main_thread, positive_int as _positive_int
+from lava_bridge_mj.eval.arguments import two_looks
 from lava_bridge_mj.eval.arguments import raise_keyboard_interrupt as _interrupt
 from lava_bridge_mj.eval.report_figures import curves_figure, maze_figure, maze_layout, save_figure
 from lava_bridge_mj.eval.report_groups import START_STUDY, benchmark_groups, demo_size_groups, weights_run
@@ -74,11 +75,13 @@ WEIGHT_SNAPSHOTS = 4
 
 def build_report(roots: Path | Sequence[Path], out: Path, threshold: float = THRESHOLD, reps: int = BOOTSTRAP_REPS,
                  runs: list[RunRecord] | None = None, budget: int | None = None,
-                 seeds: list[int] | None = None, all_pairs: bool = False) -> Path:
+                 seeds: list[int] | None = None, all_pairs: bool = False,
+                 looks: tuple[int, int] | None = None) -> Path:
     """Write every figure and report.md for the runs under `roots` (one directory or several; or
     `runs`, found there already) into `out`; returns report.md's path. `budget` and `seeds` select
     evaluations and runs as `find_runs` does; `all_pairs` tests every pair of a task's groups in the
-    pairwise table instead of `comparison_pairs`'s. ValueError when a root holds no such run or a run's
+    pairwise table instead of `comparison_pairs`'s; `looks` (first, second seeds per group) checks the
+    study's verdicts at the two-look level too (eval/study.py). ValueError when a root holds no such run or a run's
     files cannot be used, OSError when `out` cannot be written: either way `out` is left as it was
     (everything is written into a temporary directory there first). Warnings (start weights that
     cannot be read) go to stderr and into report.md."""
@@ -91,7 +94,7 @@ def build_report(roots: Path | Sequence[Path], out: Path, threshold: float = THR
     out.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=".report-", dir=out))
     try:
-        warnings = _write_report(staging, roots, groups, curves, threshold, reps, budget, seeds, all_pairs)
+        warnings = _write_report(staging, roots, groups, curves, threshold, reps, budget, seeds, all_pairs, looks)
         for warning in warnings:
             print(f"lava-bridge-bench report: warning: {warning}", file=sys.stderr)
         _publish(staging, out)
@@ -120,7 +123,8 @@ def _publish(staging: Path, out: Path) -> None:
 
 
 def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dict, threshold: float, reps: int,
-                  budget: int | None, seeds: list[int] | None, all_pairs: bool = False) -> list[str]:
+                  budget: int | None, seeds: list[int] | None, all_pairs: bool = False,
+                  looks: tuple[int, int] | None = None) -> list[str]:
     """Every figure and report.md into `out`; returns the warnings. Runs of one task make the report's
     sections; runs of several tasks make one part per task (figures named TASK_NAME), since methods are
     compared within a task only, after a table of every task's answers to the study's questions."""
@@ -142,7 +146,7 @@ def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dic
              f"the demos.", "",
              *runs_table(groups)]
     # the study's questions are asked at its threshold only, once per task
-    answers = {task: answer_questions([g for g in groups if g.task == task]) if threshold == THRESHOLD else []
+    answers = {task: answer_questions([g for g in groups if g.task == task], looks) if threshold == THRESHOLD else []
                for task in tasks}
     overview = study_overview(answers) if len(tasks) > 1 else []
     if overview:
@@ -347,6 +351,10 @@ def main(argv: list[str] | None = None) -> int:
                         help="test every pair of a task's groups in the pairwise table, e.g. each variant against "
                              "every other method too (default: the pairs the study and the paper's comparisons "
                              "need, each variant against its method's default)")
+    parser.add_argument("--looks", type=two_looks, default=None, metavar="FIRST,SECOND",
+                        help="the seeds per group at which a study reads its comparisons, first and after a seed "
+                             "extension, e.g. 20,49: each verdict is also checked at Pocock's two-look level "
+                             "(default: one look)")
     args = parser.parse_args(argv)
     if not 1 <= args.reps <= MAX_REPS:
         parser.error(f"--reps must be in 1-{MAX_REPS:,}, got {args.reps}")
@@ -365,7 +373,7 @@ def main(argv: list[str] | None = None) -> int:
     previous = signal.signal(signal.SIGTERM, _interrupt) if _in_main_thread() else None
     try:
         report = build_report(args.dirs, out, args.threshold, args.reps, runs, args.budget, args.seeds,
-                              args.all_pairs)
+                              args.all_pairs, args.looks)
     except ValueError as error:  # a run's files cannot be used (its config makes no maze, ...)
         return _error(f"{error}; {unchanged}")
     except OSError as error:  # a full disk, a directory that turned read-only, ...

@@ -199,6 +199,13 @@ def study_section(questions: list[Question], heading: str = "##") -> list[str]:
              f"Where no test rejects, *not enough seeds to decide* when Fisher's test has less than "
              f"{POWER:.0%} power to detect a difference of {EFFECT:g} in the rate (with the seeds per group "
              f"that would give it), *no difference found* otherwise."]
+    looks = questions[0].looks
+    if looks is not None:
+        lines[-1] += (f" The study reads its comparisons twice, at {looks[0]} and again at {looks[1]} seeds per group "
+                      f"(a seed extension of the groups still undecided), so each verdict is also checked at "
+                      f"{stats.two_look_level(*looks):.4f}, Pocock's level for each of two looks that keeps both "
+                      f"together at {ALPHA:g}: *A ahead at {ALPHA:g} only* where a test rejects at {ALPHA:g} and "
+                      f"none at that level.")
     for number, question in enumerate(questions, 1):
         lines += ["", f"{heading}# {number}. {question.text}", "", f"**{question.summary}.**", "",
                   "| A against B | aspect | measured | effect: A - B [95% CI] | tests: p (Holm-adjusted) | "
@@ -225,6 +232,11 @@ def study_overview(answers: dict[str, list[Question]]) -> list[str]:
              f"{EFFECT:g} in the rate on the comparisons that are *not enough seeds to decide* (their range; "
              "'-' where none is): what more seeds for the task would have to reach.", "",
              "| task | question | verdicts | decided | seeds needed where undecided |", "|---|---|---|---|---:|"]
+    looks = next(q.looks for questions in answered.values() for q in questions.values())
+    if looks is not None:
+        level = stats.two_look_level(*looks)
+        lines[0] += (f" *At {ALPHA:g} only*: decided at {ALPHA:g} but not at {level:.4f}, the level for each of the "
+                     f"study's two looks ({looks[0]} and {looks[1]} seeds per group).")
     for task, questions in answered.items():
         for number, (short, text, _) in enumerate(QUESTIONS, 1):
             question = questions.get(text)

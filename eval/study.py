@@ -30,6 +30,14 @@ Fisher's test (seeds reaching 0.8, or robust seeds), with Newcombe's 95% interva
 (`statistics.rate_difference`), so a negative answer says how large a difference the seeds leave
 possible.
 
+A study that reads the same comparisons twice, after a first batch of seeds and again after a seed
+extension of the groups still undecided, looks at each comparison twice, and at 0.05 per look the
+chance that either look rejects a true tie is about 0.086 (for normally distributed test statistics).
+Given the two looks' seeds per group (`looks`), each comparison a test decides at 0.05 is also settled
+at `statistics.two_look_level(*looks)`, Pocock's level for each of two looks that keeps both together
+at 0.05 (0.0284 for 20 and 49 seeds); one that does not hold there reads *A ahead at 0.05 only*, and
+a seed extension trains its groups on too.
+
 Groups are each method's default configuration with 0.5K demo transitions (`claims.pick`); a pair
 whose groups are not both present is reported as not run.
 """
@@ -62,6 +70,8 @@ ASPECTS = (("learns faster", reach_comparison), ("more robust", robust_compariso
 TESTS_PER_COMPARISON = 2
 """Each aspect's comparison makes two tests (a count test and a rank or permutation test)."""
 NO_COMMON_SEEDS = "no seed in common"
+AT_ONE_LOOK_ONLY = f"at {stats.ALPHA:g} only"
+"""Appended to a verdict that rejects at 0.05 but not at the two-look level."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -77,6 +87,8 @@ class Answer:
     """Rate of A minus rate of B of the outcome behind Fisher's test, with its 95% interval."""
     absent: str = NOT_RUN
     """Why there is no `part`."""
+    two_looks: Part | None = None
+    """The same comparison settled at the two-look level, when the study's looks are given."""
 
     @property
     def ahead(self) -> tuple[str, str] | None:
@@ -85,11 +97,19 @@ class Answer:
         return {SUPPORTED: (self.a, self.b), CONTRADICTED: (self.b, self.a)}.get(verdict)
 
     @property
+    def at_one_look_only(self) -> bool:
+        """A test decided the comparison at 0.05, and none does at the two-look level."""
+        return (self.ahead is not None and self.two_looks is not None
+                and self.two_looks.verdict not in (SUPPORTED, CONTRADICTED))
+
+    @property
     def verdict(self) -> str:
         """Who is ahead, or why neither is: the findings' verdict read as an answer."""
         if self.part is None:
             return self.absent
-        return f"{self.ahead[0]} ahead" if self.ahead else self.part.verdict
+        if not self.ahead:
+            return self.part.verdict
+        return f"{self.ahead[0]} ahead" + (f" {AT_ONE_LOOK_ONLY}" if self.at_one_look_only else "")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -97,6 +117,8 @@ class Question:
     short: str
     text: str
     answers: list[Answer]
+    looks: tuple[int, int] | None = None
+    """The seeds per group of the study's two readings, when its verdicts are checked at the two-look level."""
 
     @property
     def summary(self) -> str:
@@ -111,7 +133,8 @@ class Question:
         aspects: dict[tuple[str, str], list[str]] = {}
         for answer in self.answers:
             if answer.ahead:
-                aspects.setdefault(answer.ahead, []).append(answer.aspect)
+                aspects.setdefault(answer.ahead, []).append(
+                    answer.aspect + (f" ({AT_ONE_LOOK_ONLY})" if answer.at_one_look_only else ""))
         return [f"{ahead} ahead of {behind}: {', '.join(names)}" for (ahead, behind), names in aspects.items()]
 
     @property
@@ -132,9 +155,11 @@ def _beyond_last(needed: int | None) -> float:
     return math.inf if needed is None else needed
 
 
-def answer_questions(groups: list[Group]) -> list[Question]:
+def answer_questions(groups: list[Group], looks: tuple[int, int] | None = None) -> list[Question]:
     """The study's questions on the groups of one task; a question none of whose pairs was run is left
-    out."""
+    out. `looks`: the seeds per group of the study's two readings (first, second), to settle each
+    comparison at the two-look level as well."""
+    two_look_alpha = stats.two_look_level(*looks) if looks is not None else None
     if len({g.task for g in groups}) > 1:
         raise ValueError(f"the study's questions are asked per task, got groups of "
                          f"{sorted({g.task for g in groups})}")
@@ -150,9 +175,12 @@ def answer_questions(groups: list[Group]) -> list[Question]:
         if all(absent == NOT_RUN for *_, absent in drafts):
             continue
         # one Holm family per question, the comparisons not made counted in it
-        settled = iter(settle(pending, untested=TESTS_PER_COMPARISON * (len(drafts) - len(pending))))
+        untested = TESTS_PER_COMPARISON * (len(drafts) - len(pending))
+        settled = iter(settle(pending, untested=untested))
+        strict = iter(settle(pending, untested=untested, alpha=two_look_alpha) if looks is not None else [])
         answers = [Answer(a, b, aspect, next(settled) if item else None,
-                          stats.rate_difference(*item.counts) if item else None, absent)
+                          stats.rate_difference(*item.counts) if item else None, absent,
+                          next(strict) if item and looks is not None else None)
                    for a, b, aspect, item, absent in drafts]
-        questions.append(Question(short, text, answers))
+        questions.append(Question(short, text, answers, looks))
     return questions

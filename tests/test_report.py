@@ -742,3 +742,12 @@ def test_the_training_return_axis_is_fixed_to_the_returns_range(tmp_path, return
         np.testing.assert_allclose(fig.axes[1].get_ylim(), (-0.03, 1.03))
     finally:
         report_figures._pyplot().close(fig)
+
+
+@pytest.mark.parametrize("looks, message", [("20", "two seed counts FIRST,SECOND"), ("49,20", "0 < FIRST < SECOND"),
+                                            ("0,49", "0 < FIRST < SECOND"), ("20,x", "got '20,x'")])
+def test_report_refuses_looks_that_are_not_two_increasing_seed_counts(tmp_path, capsys, looks, message):
+    write_run(tmp_path / "runs" / "seed0", seed=0, p0=[0.0, 1.0])
+    with pytest.raises(SystemExit):
+        report.main([str(tmp_path / "runs"), "--looks", looks, "--out", str(tmp_path / "out")])
+    assert message in capsys.readouterr().err and not (tmp_path / "out").exists()

@@ -206,3 +206,27 @@ def test_report_writes_the_reach_counts_and_the_pairwise_tests(tmp_path):
     assert "more often" not in auxss_uss[11]
     assert rows["auxss (0.5K)", "goaldist_ss (0.5K)"][11] == "not enough seeds to decide"
     assert "Holm-adjusted across the 3 pairs" in text
+
+
+def test_two_look_level_is_pococks_boundary_and_keeps_the_overall_error_at_alpha():
+    # Pocock (1977), two equally spaced looks at 0.05 overall: boundary 2.178, nominal level 0.0294 at each
+    assert stats.two_look_level(10, 20) == pytest.approx(0.0294, abs=5e-5)
+    assert stats.two_look_level(20, 40) == pytest.approx(stats.two_look_level(10, 20), rel=1e-9)
+    # looks so far apart their statistics are nearly independent: 1 - (1 - level)^2 = alpha
+    assert stats.two_look_level(1, 10**8) == pytest.approx(1 - math.sqrt(0.95), abs=1e-5)
+    # the study's looks, 20 then 49 seeds: sampled correlated statistics reject a true tie at either look 5% of
+    # the time at this level (and about 8.6% at 0.05 per look)
+    level = stats.two_look_level(20, 49)
+    assert 0.0254 < level < 0.0294
+    rng = np.random.default_rng(0)
+    first = rng.standard_normal(2_000_000)
+    second = math.sqrt(20 / 49) * first + math.sqrt(29 / 49) * rng.standard_normal(first.size)
+    either = lambda c: np.mean((np.abs(first) > c) | (np.abs(second) > c))  # noqa: E731
+    assert either(scipy.stats.norm.isf(level / 2)) == pytest.approx(0.05, abs=6e-4)
+    assert either(scipy.stats.norm.isf(0.025)) == pytest.approx(0.086, abs=1e-3)
+
+
+@pytest.mark.parametrize("first, second, alpha", [(20, 20, 0.05), (0, 49, 0.05), (49, 20, 0.05), (20, 49, 1.5)])
+def test_two_look_level_rejects_looks_out_of_order_and_levels_outside_0_1(first, second, alpha):
+    with pytest.raises(ValueError, match=rf"{first}|{alpha}"):
+        stats.two_look_level(first, second, alpha)
