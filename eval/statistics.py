@@ -274,7 +274,7 @@ def seeds_needed(rate_a: float, rate_b: float, target: float = POWER, alpha: flo
     return next((n for n in range(2, most + 1) if power(rate_a, rate_b, n, alpha=alpha) >= target), None)
 
 
-
+@functools.cache  # a pure function the report asks for once per task and table
 def two_look_level(first: int, second: int, alpha: float = ALPHA) -> float:
     """The level to test at, at each of two looks at one comparison (after `first` and again after
     `second` seeds per group), so that the chance either look rejects a true tie is `alpha`: Pocock's
@@ -296,6 +296,7 @@ def two_look_level(first: int, second: int, alpha: float = ALPHA) -> float:
     one_look = scipy.stats.norm.isf(alpha / 2)
     boundary = scipy.optimize.brentq(lambda c: 1 - both_inside(c) - alpha, one_look, one_look + 2, xtol=1e-12)
     return float(2 * scipy.stats.norm.sf(boundary))
+
 
 # --- a comparison of two groups ------------------------------------------------------------------
 TESTS = ("reach", "steps", "final", "late")
