@@ -177,10 +177,11 @@ def answer_questions(groups: list[Group], looks: tuple[int, int] | None = None) 
         # one Holm family per question, the comparisons not made counted in it
         untested = TESTS_PER_COMPARISON * (len(drafts) - len(pending))
         settled = iter(settle(pending, untested=untested))
-        strict = iter(settle(pending, untested=untested, alpha=two_look_alpha) if looks is not None else [])
+        strict = iter(settle(pending, untested=untested, alpha=two_look_alpha) if looks is not None
+                      else [None] * len(pending))
         answers = [Answer(a, b, aspect, next(settled) if item else None,
                           stats.rate_difference(*item.counts) if item else None, absent,
-                          next(strict) if item and looks is not None else None)
+                          next(strict) if item else None)
                    for a, b, aspect, item, absent in drafts]
         questions.append(Question(short, text, answers, looks))
     return questions

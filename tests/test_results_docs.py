@@ -307,15 +307,15 @@ def test_the_seed_extension_trains_exactly_the_groups_the_study_report_leaves_un
     needed = [int(n) for n in re.findall(r"\| \d+ to (\d+) \|$", section(report_text, "## The study's answers, task by task"),
                                          re.MULTILINE)]
     study_first, study_last = map(int, makefile_sweeps("study")[0]["--seeds"].split("-"))
-    options = {key: value for key, value in makefile_sweeps("study")[0].items() if key not in ("--methods", "--envs", "--steps", "--out")}
+    options = {key: value for key, value in makefile_sweeps("study")[0].items()
+               if key not in ("--methods", "--envs", "--steps", "--out", "--seeds")}
     [study_report] = [argv for argv in COMMANDS if argv[argv.index("--out") + 1] == "docs/report_study"]
     first_look, second_look = map(int, study_report[study_report.index("--looks") + 1].split(","))
     assert (first_look, second_look) == (study_last - study_first + 1, max(needed))
     for sweep in extension:
         assert sweep["--seeds"] == f"{study_last + 1}-{study_first + second_look - 1}"
         assert all(sweep["--steps"] == study_steps[task] for task in sweep["--envs"].split(","))
-        assert {key: value for key, value in sweep.items() if key in options and key != "--seeds"} == \
-            {key: value for key, value in options.items() if key != "--seeds"}
+        assert {key: value for key, value in sweep.items() if key in options} == options
 
 
 def test_every_folder_of_results_is_described_in_its_readme():

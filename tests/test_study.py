@@ -19,10 +19,10 @@ FAILED = {seed: [0.0, 0.0] for seed in range(10)}
 FISHER_ALL_AGAINST_NONE = 2 / math.comb(20, 10)  # 1.0825e-05
 
 
-def answers(tmp_path, runs):
+def answers(tmp_path, runs, looks=None):
     for method, p0_by_seed in runs.items():
         write_metric_runs(tmp_path, method, p0_by_seed)
-    return {q.text: q for q in study.answer_questions(groups_in(tmp_path))}
+    return {q.text: q for q in study.answer_questions(groups_in(tmp_path), looks)}
 
 
 def safety_question(questions):
@@ -165,25 +165,15 @@ def test_with_two_looks_a_verdict_that_rejects_at_005_only_says_so_and_a_clear_o
     # AuxSS 7 of 10 against U-SS 0 of 10 in the family of 16: Holm-adjusted Fisher p 0.0495 (above), below 0.05
     # but above the two-look level 0.0284 of 20 and 49 seeds; all against none (Holm 0.000173) is below both
     auxss = {s: [0.0, 1.0] if s < 7 else [0.0, 0.0] for s in range(10)}
-    write_metric_runs(tmp_path / "near", "auxss", auxss)
-    write_metric_runs(tmp_path / "near", "uniform_ss", FAILED)
-    one_look = safety_question({q.text: q for q in study.answer_questions(groups_in(tmp_path / "near"))})
-    [near] = [q for q in study.answer_questions(groups_in(tmp_path / "near"), looks=(20, 49))
-              if q.text.startswith("Does a safety-derived")]
+    one_look = safety_question(answers(tmp_path / "near", {"auxss": auxss, "uniform_ss": FAILED}))
+    near = safety_question(answers(tmp_path / "near", {}, looks=(20, 49)))
     assert one_look.answers[0].verdict == "auxss ahead" and one_look.answers[0].two_looks is None
     assert near.answers[0].verdict == "auxss ahead at 0.05 only"
     assert near.answers[0].two_looks.verdict == "not enough seeds to decide"
     assert near.decided[0].startswith("auxss ahead of uniform_ss: learns faster (at 0.05 only)")
     assert near.answers[0].part == one_look.answers[0].part  # the 0.05 reading is unchanged
-    clear_groups = groups_in(_clear_win(tmp_path))
-    clear = safety_question({q.text: q for q in study.answer_questions(clear_groups, looks=(20, 49))})
+    clear = safety_question(answers(tmp_path / "clear", {"auxss": SOLVED, "uniform_ss": FAILED}, looks=(20, 49)))
     assert [a.verdict for a in clear.answers[:2]] == ["auxss ahead", "auxss ahead"]
     section = " ".join(study_section([near]))
     assert "at 20 and again at 49 seeds per group" in section and "0.0284" in section
     assert "*At 0.05 only*" in study_overview({"LavaBridge-v0": [near]})[0]
-
-
-def _clear_win(tmp_path):
-    write_metric_runs(tmp_path / "clear", "auxss", SOLVED)
-    write_metric_runs(tmp_path / "clear", "uniform_ss", FAILED)
-    return tmp_path / "clear"
