@@ -289,6 +289,25 @@ def test_results_md_says_which_of_the_studys_runs_are_finished_as_results_study_
         assert names["finished"] == complete and names["still"] == set(planned[task][1]) - complete, task
 
 
+def test_results_md_says_which_seeds_of_the_extension_are_trained_as_results_study_holds_them():
+    # every group with runs beyond the study's seeds in results/study is listed with exactly those seeds,
+    # as one range, and is a group the extension trains (no stray seeds, none claimed that are not there)
+    study_last = int(makefile_sweeps("study")[0]["--seeds"].split("-")[1])
+    cells = {(task, method) for sweep in makefile_sweeps("study-extension") for task in sweep["--envs"].split(",")
+             for method in sweep["--methods"].split(",")}
+    held = {}
+    for metrics in (ROOT / "results/study").glob("*/*-d500/seed*/metrics.csv"):
+        seed = int(metrics.parent.name.removeprefix("seed"))
+        if seed > study_last:
+            held.setdefault((metrics.parents[2].name, metrics.parents[1].name.removesuffix("-d500")), []).append(seed)
+    listed = {(task, method): seeds for task, method, seeds in re.findall(
+        r"^\| `(LavaBridge\w*-v0)` \| (\w+) \| (\d+-\d+) \|$",
+        section((ROOT / "docs/results.md").read_text(), "## The study on the task suite"), re.MULTILINE)}
+    assert set(listed) <= cells
+    assert {group: f"{min(seeds)}-{max(seeds)}" for group, seeds in held.items()} == listed
+    assert all(sorted(seeds) == list(range(min(seeds), max(seeds) + 1)) for seeds in held.values())
+
+
 def test_the_seed_extension_trains_exactly_the_groups_the_study_report_leaves_undecided():
     # read against the 20-seed report: every group of a comparison still open (not enough seeds to decide, or
     # decided at 0.05 but not at the two-look level), on its task at the study's budget, from the seed after the
