@@ -268,11 +268,23 @@ def assert_quoted_from(prose, report_text, where):
         assert number in report_text, f"{where} quotes {number}; the report does not"
 
 
+def study_seed_range():
+    """The first and last evaluation seed of `make study`."""
+    first, last = makefile_sweeps("study")[0]["--seeds"].split("-")
+    return int(first), int(last)
+
+
+def extension_groups():
+    """(task, method) of each group `make study-extension` trains, once per sweep line that names it."""
+    return [(task, method) for sweep in makefile_sweeps("study-extension") for task in sweep["--envs"].split(",")
+            for method in sweep["--methods"].split(",")]
+
+
 def test_results_md_says_which_of_the_studys_runs_are_finished_as_results_study_holds_them():
     # each task of the suite: its budget as `make study` trains it, the methods with all their seeds in
     # results/study, and the rest of the study's methods still to run
     sweeps = makefile_sweeps("study")
-    first, last = map(int, sweeps[0]["--seeds"].split("-"))
+    first, last = study_seed_range()
     planned = {}  # task -> (steps, methods)
     for sweep in sweeps:
         for task in sweep["--envs"].split(","):
@@ -292,9 +304,7 @@ def test_results_md_says_which_of_the_studys_runs_are_finished_as_results_study_
 def test_results_md_says_which_seeds_of_the_extension_are_trained_as_results_study_holds_them():
     # every group with runs beyond the study's seeds in results/study is listed with exactly those seeds,
     # as one range, and is a group the extension trains (no stray seeds, none claimed that are not there)
-    study_last = int(makefile_sweeps("study")[0]["--seeds"].split("-")[1])
-    cells = {(task, method) for sweep in makefile_sweeps("study-extension") for task in sweep["--envs"].split(",")
-             for method in sweep["--methods"].split(",")}
+    study_last = study_seed_range()[1]
     held = {}
     for metrics in (ROOT / "results/study").glob("*/*-d500/seed*/metrics.csv"):
         seed = int(metrics.parent.name.removeprefix("seed"))
@@ -303,7 +313,7 @@ def test_results_md_says_which_seeds_of_the_extension_are_trained_as_results_stu
     listed = {(task, method): seeds for task, method, seeds in re.findall(
         r"^\| `(LavaBridge\w*-v0)` \| (\w+) \| (\d+-\d+) \|$",
         section((ROOT / "docs/results.md").read_text(), "## The study on the task suite"), re.MULTILINE)}
-    assert set(listed) <= cells
+    assert set(listed) <= set(extension_groups())
     assert {group: f"{min(seeds)}-{max(seeds)}" for group, seeds in held.items()} == listed
     assert all(sorted(seeds) == list(range(min(seeds), max(seeds) + 1)) for seeds in held.values())
 
@@ -320,12 +330,11 @@ def test_the_seed_extension_trains_exactly_the_groups_the_study_report_leaves_un
                    for method in pair.split(" against ")}
     study_steps = {task: sweep["--steps"] for sweep in makefile_sweeps("study") for task in sweep["--envs"].split(",")}
     extension = makefile_sweeps("study-extension")
-    cells = [(task, method) for sweep in extension for task in sweep["--envs"].split(",")
-             for method in sweep["--methods"].split(",")]
+    cells = extension_groups()
     assert len(cells) == len(set(cells)) and set(cells) == open_groups
     needed = [int(n) for n in re.findall(r"\| \d+ to (\d+) \|$", section(report_text, "## The study's answers, task by task"),
                                          re.MULTILINE)]
-    study_first, study_last = map(int, makefile_sweeps("study")[0]["--seeds"].split("-"))
+    study_first, study_last = study_seed_range()
     options = {key: value for key, value in makefile_sweeps("study")[0].items()
                if key not in ("--methods", "--envs", "--steps", "--out", "--seeds")}
     [study_report] = [argv for argv in COMMANDS if argv[argv.index("--out") + 1] == "docs/report_study"]
