@@ -38,6 +38,11 @@ def test_committed_report_is_regenerated_exactly_from_results(argv, tmp_path, mo
     assert report.main(argv) == 0
     assert (tmp_path / "report.md").read_text() == committed.read_text(), \
         f"{committed} is stale: run `make report` and commit what it writes"
+    # a figure the report no longer writes (a renamed or dropped plot) must not linger beside it
+    written = sorted(path.name for path in tmp_path.iterdir())
+    kept = sorted(path.name for path in committed.parent.iterdir())
+    assert kept == written, (f"{committed.parent} holds {sorted(set(kept) - set(written))} that the report no longer "
+                             f"writes and lacks {sorted(set(written) - set(kept))}: git rm the first, run `make report`")
 
 
 def test_the_difficulty_tables_sac_section_is_what_the_committed_sac_runs_give(monkeypatch):
