@@ -48,7 +48,7 @@ import functools
 import json
 import math
 from collections import defaultdict
-from collections.abc import Collection
+from collections.abc import Collection, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -93,11 +93,13 @@ class RunRecord:
         return str(self.config.get("env_id", DEFAULT_ENV_ID))
 
 
-def find_runs(root: str | Path, budget: float | None = None, seeds: Collection[int] | None = None) -> list[RunRecord]:
+def find_runs(root: str | Path, budget: float | None = None, seeds: Collection[int] | None = None,
+              task_seeds: Mapping[str, Collection[int]] | None = None) -> list[RunRecord]:
     """Every run directory under `root` (itself included), in path order; with `budget`, only the
     evaluations at or before that step (a run with none left is dropped); with `seeds`, only those
-    seeds' runs. ValueError when no run is left, or when a config.json or metrics.csv cannot be read
-    (naming the file)."""
+    seeds' runs; with `task_seeds` (task -> seeds), a task named there keeps its own seeds instead of
+    `seeds` (a study reads a task whose seed extension is still training at its first seeds). ValueError
+    when no run is left, or when a config.json or metrics.csv cannot be read (naming the file)."""
     root = Path(root)
     if not root.is_dir():
         raise ValueError(f"{root} is not a directory")
@@ -117,11 +119,14 @@ def find_runs(root: str | Path, budget: float | None = None, seeds: Collection[i
         rows = read_metrics(directory)
         if budget is not None:
             rows = [row for row in rows if row["step"] <= budget]
-        if rows and (seeds is None or config.get("seed") in seeds):
-            runs.append(RunRecord(directory, config, rows))
+        run = RunRecord(directory, config, rows)
+        chosen = (task_seeds or {}).get(run.task, seeds)
+        if rows and (chosen is None or config.get("seed") in chosen):
+            runs.append(run)
     if not runs:
         chosen = "".join([f" with evaluations at or before step {budget:,.0f}" if budget is not None else "",
-                          f" of seeds {sorted(seeds)}" if seeds is not None else ""])
+                          f" of seeds {sorted(seeds)}" if seeds is not None else "",
+                          "".join(f" ({task}: seeds {sorted(chosen)})" for task, chosen in (task_seeds or {}).items())])
         raise ValueError(f"{root} holds no run directory (config.json with metrics.csv){chosen} at any depth")
     return runs
 

@@ -45,6 +45,7 @@ import shutil
 import signal
 import sys
 import tempfile
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -63,7 +64,7 @@ from lava_bridge_mj.eval.report_tables import (counted, findings_section, last_e
                                                threshold_table)
 from lava_bridge_mj.eval.study import Question, answer_questions
 from lava_bridge_mj.eval.summary import CurriculumStall, curriculum_progress, curriculum_stall, read_start_weights
-from lava_bridge_mj.tasks import DEFAULT_ENV_ID
+from lava_bridge_mj.tasks import DEFAULT_ENV_ID, SUITE
 from lava_bridge_mj.eval.sweep import seed_list
 
 MAX_REPS = 100_000
@@ -76,10 +77,10 @@ WEIGHT_SNAPSHOTS = 4
 def build_report(roots: Path | Sequence[Path], out: Path, threshold: float = THRESHOLD, reps: int = BOOTSTRAP_REPS,
                  runs: list[RunRecord] | None = None, budget: int | None = None,
                  seeds: list[int] | None = None, all_pairs: bool = False,
-                 looks: tuple[int, int] | None = None) -> Path:
+                 looks: tuple[int, int] | None = None, task_seeds: dict[str, list[int]] | None = None) -> Path:
     """Write every figure and report.md for the runs under `roots` (one directory or several; or
-    `runs`, found there already) into `out`; returns report.md's path. `budget` and `seeds` select
-    evaluations and runs as `find_runs` does; `all_pairs` tests every pair of a task's groups in the
+    `runs`, found there already) into `out`; returns report.md's path. `budget`, `seeds` and `task_seeds`
+    select evaluations and runs as `find_runs` does; `all_pairs` tests every pair of a task's groups in the
     pairwise table instead of `comparison_pairs`'s; `looks` (first, second seeds per group) checks the
     study's verdicts at the two-look level too (eval/study.py). ValueError when a root holds no such run or a run's
     files cannot be used, OSError when `out` cannot be written: either way `out` is left as it was
@@ -87,14 +88,15 @@ def build_report(roots: Path | Sequence[Path], out: Path, threshold: float = THR
     cannot be read) go to stderr and into report.md."""
     roots = [Path(roots)] if isinstance(roots, (str, Path)) else [Path(root) for root in roots]
     if runs is None:
-        runs = [run for root in roots for run in find_runs(root, budget, seeds)]
+        runs = [run for root in roots for run in find_runs(root, budget, seeds, task_seeds)]
     groups = group_runs(runs)
     curves = {g.label: iqm_curves(g, METRICS, reps=reps) for g in groups}
     made = [d for d in (out, *out.parents) if not d.exists()]
     out.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=".report-", dir=out))
     try:
-        warnings = _write_report(staging, roots, groups, curves, threshold, reps, budget, seeds, all_pairs, looks)
+        warnings = _write_report(staging, roots, groups, curves, threshold, reps, budget, seeds, all_pairs, looks,
+                                 task_seeds)
         for warning in warnings:
             print(f"lava-bridge-bench report: warning: {warning}", file=sys.stderr)
         _publish(staging, out)
@@ -124,7 +126,7 @@ def _publish(staging: Path, out: Path) -> None:
 
 def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dict, threshold: float, reps: int,
                   budget: int | None, seeds: list[int] | None, all_pairs: bool = False,
-                  looks: tuple[int, int] | None = None) -> list[str]:
+                  looks: tuple[int, int] | None = None, task_seeds: dict[str, list[int]] | None = None) -> list[str]:
     """Every figure and report.md into `out`; returns the warnings. Runs of one task make the report's
     sections; runs of several tasks make one part per task (figures named TASK_NAME), since methods are
     compared within a task only, after a table of every task's answers to the study's questions."""
@@ -135,6 +137,9 @@ def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dic
     selection = [f"evaluations up to step {budget:,}" if budget is not None else "",
                  f"seeds {format_seeds(sorted(seeds))}" if seeds is not None else ""]
     selection = " and ".join(part for part in selection if part)
+    if task_seeds:
+        selection += (" (" if selection else "every seed (") + "; ".join(
+            f"{task}: seeds {format_seeds(sorted(chosen))}" for task, chosen in task_seeds.items()) + ")"
     tasks = list(dict.fromkeys(g.task for g in groups))
     title = f"{tasks[0]} report" if len(tasks) == 1 else f"Report on {len(tasks)} tasks ({', '.join(tasks)})"
     lines = [f"# {title}: {where}" + (f", {selection}" if selection else ""), "",
@@ -347,6 +352,10 @@ def main(argv: list[str] | None = None) -> int:
                              "300000 with runs stopped at 100000 (default: every evaluation)")
     parser.add_argument("--seeds", type=seed_list, default=None,
                         help="only these seeds' runs, e.g. 0-4 or 0,3,5-7 (default: every run)")
+    parser.add_argument("--task-seeds", type=task_seed_list, action="append", default=[], metavar="TASK=SEEDS",
+                        help="this task's runs at these seeds instead of --seeds', e.g. "
+                             "LavaBridgeTwoCrossings-v0=0-19 for a task whose seed extension is still training; "
+                             "once per task (default: every task at --seeds)")
     parser.add_argument("--all-pairs", action="store_true",
                         help="test every pair of a task's groups in the pairwise table, e.g. each variant against "
                              "every other method too (default: the pairs the study and the paper's comparisons "
@@ -360,20 +369,28 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--reps must be in 1-{MAX_REPS:,}, got {args.reps}")
     if not 0 <= args.threshold <= 1:
         parser.error(f"--threshold must be a success rate in [0, 1], got {args.threshold}")
+    twice = sorted(task for task, count in Counter(task for task, _ in args.task_seeds).items() if count > 1)
+    if twice:
+        parser.error(f"--task-seeds names each task once, got {', '.join(twice)} more than once")
+    task_seeds = dict(args.task_seeds)
     out = args.out if args.out is not None else args.dirs[0] / "report"
     unwritable = _unwritable(out)
     if unwritable:
         return _error(f"--out {out} {unwritable}")
     try:
-        runs = [run for root in args.dirs for run in find_runs(root, args.budget, args.seeds)]  # before writing
+        runs = [run for root in args.dirs for run in find_runs(root, args.budget, args.seeds, task_seeds)]  # before writing
         group_runs(runs)  # refuses a seed given twice
+        absent = sorted(set(task_seeds) - {run.task for run in runs})
+        if absent:
+            raise ValueError(f"--task-seeds names {', '.join(absent)}, which has no run of those seeds in "
+                             f"{', '.join(str(d) for d in args.dirs)}")
     except ValueError as error:
         return _error(str(error))
     unchanged = f"{out} is left as it was" if out.exists() else "nothing written"
     previous = signal.signal(signal.SIGTERM, _interrupt) if _in_main_thread() else None
     try:
         report = build_report(args.dirs, out, args.threshold, args.reps, runs, args.budget, args.seeds,
-                              args.all_pairs, args.looks)
+                              args.all_pairs, args.looks, task_seeds)
     except ValueError as error:  # a run's files cannot be used (its config makes no maze, ...)
         return _error(f"{error}; {unchanged}")
     except OSError as error:  # a full disk, a directory that turned read-only, ...
@@ -386,6 +403,16 @@ def main(argv: list[str] | None = None) -> int:
             signal.signal(signal.SIGTERM, previous)
     print(f"wrote {report} and its figures from {len(runs)} runs")
     return 0
+
+
+def task_seed_list(text: str) -> tuple[str, list[int]]:
+    """An argparse type: 'TASK=SEEDS', a task of the suite and a seed list as --seeds takes it."""
+    task, equals, seeds = text.partition("=")
+    if not equals or not seeds.strip():
+        raise argparse.ArgumentTypeError(f"expected TASK=SEEDS such as LavaBridgeTwoCrossings-v0=0-19, got {text!r}")
+    if task not in SUITE:
+        raise argparse.ArgumentTypeError(f"expected a task of the suite ({', '.join(SUITE)}) before '=', got {task!r}")
+    return task, seed_list(seeds)
 
 
 def _unwritable(out: Path) -> str | None:

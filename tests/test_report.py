@@ -384,6 +384,34 @@ def test_report_budget_and_seeds_select_evaluations_and_runs(tmp_path, capsys):
     assert "expected a positive integer, got 0" in capsys.readouterr().err
 
 
+def test_task_seeds_read_one_task_at_its_own_seeds_and_refuse_what_names_nothing(tmp_path, capsys):
+    # a study reads a task whose seed extension is still training at its first seeds, the others at all of theirs
+    sweep = tmp_path / "study"
+    for seed in range(4):
+        write_run(sweep / "LavaBridge-v0" / f"seed{seed}", seed=seed, p0=[0.0, 1.0])
+        write_run(sweep / "narrow" / f"seed{seed}", seed=seed, p0=[0.0, 1.0], env_id="LavaBridgeNarrow-v0")
+    runs = aggregate.find_runs(sweep, seeds=range(4), task_seeds={"LavaBridgeNarrow-v0": [0, 1]})
+    assert sorted((run.task, run.seed) for run in runs) == [("LavaBridge-v0", s) for s in range(4)] + [
+        ("LavaBridgeNarrow-v0", 0), ("LavaBridgeNarrow-v0", 1)]
+    out = tmp_path / "out"
+    assert report.main([str(sweep), "--seeds", "0-3", "--task-seeds", "LavaBridgeNarrow-v0=0-1", "--reps", "50",
+                        "--out", str(out)]) == 0
+    text = (out / "report.md").read_text()
+    assert text.splitlines()[0].endswith(f"`{sweep}`, seeds 0-3 (LavaBridgeNarrow-v0: seeds 0-1)")
+    assert "| auxss (0.5K) | 4: 0, 1, 2, 3 |" in text and "| auxss (0.5K) on LavaBridgeNarrow-v0 | 2: 0, 1 |" in text
+    # usage errors name the bad value; nothing is written
+    for argv, message in ((["--task-seeds", "LavaBridgeNarow-v0=0-1"], "got 'LavaBridgeNarow-v0'"),
+                          (["--task-seeds", "LavaBridgeNarrow-v0"], "expected TASK=SEEDS"),
+                          (["--task-seeds", "LavaBridgeNarrow-v0=0", "--task-seeds", "LavaBridgeNarrow-v0=1"],
+                           "got LavaBridgeNarrow-v0 more than once")):
+        with pytest.raises(SystemExit):
+            report.main([str(sweep), *argv, "--out", str(tmp_path / "bad")])
+        assert message in capsys.readouterr().err
+    assert report.main([str(sweep), "--task-seeds", "LavaBridgeFarStart-v0=0-1", "--out", str(tmp_path / "bad")]) == 2
+    assert "--task-seeds names LavaBridgeFarStart-v0, which has no run of those seeds" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()
+
+
 def test_report_of_several_directories_and_a_run_given_twice(tmp_path, capsys):
     write_run(tmp_path / "protocol" / "auxss" / "seed0", seed=0, p0=[0.0, 1.0])
     write_run(tmp_path / "ablations" / "seed0", seed=0, p0=[0.0, 0.5], strategy={"ema": 0.5})
