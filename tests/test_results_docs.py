@@ -14,6 +14,7 @@ from conftest import makefile_commands, makefile_sweeps
 pytest.importorskip("rliable", reason="the report needs the plots extra: pip install -e '.[plots]'")
 
 from lava_bridge_mj.eval import report  # noqa: E402
+from lava_bridge_mj.eval.claims import UNDECIDED  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -213,17 +214,32 @@ def test_the_readmes_summary_in_words_still_says_what_the_study_report_decides()
                for task, question, _, cell, _ in re.findall(OVERVIEW_ROW, section(report, "## The study's answers, task by task"),
                                                          re.MULTILINE) if cell.strip() != "-"}
     assert decided == {
+        ("LavaBridge-v0", "1"): "goaldist_ss ahead of omega_ss: learns faster",
+        ("LavaBridgeDecoy-v0", "1"): "auxss ahead of uniform_ss: learns faster, more robust",
+        ("LavaBridgeDecoy-v0", "2"): "auxss ahead of reverse_ss: more robust (at 0.05 only)",
+        ("LavaBridgeFarStart-v0", "1"): ("auxss ahead of uniform_ss: learns faster, more robust; "
+                                         "goaldist_ss ahead of omega_ss: learns faster"),
+        ("LavaBridgeFarStart-v0", "2"): "auxss ahead of reverse_ss: learns faster, more robust",
         ("LavaBridgeNarrow-v0", "1"): "auxss ahead of uniform_ss: learns faster, more robust",
+        ("LavaBridgeNarrow-v0", "2"): "reverse_ss ahead of auxss: learns faster",
         ("LavaBridgeTwoCrossings-v0", "1"): "auxss ahead of uniform_ss: learns faster, more robust",
-        ("LavaBridgeFarStart-v0", "2"): ("auxss ahead of reverse_ss: learns faster (at 0.05 only), "
-                                         "more robust (at 0.05 only)"),
         ("LavaBridgeTwoCrossings-v0", "2"): "auxss ahead of reverse_ss: learns faster, more robust",
     }
     readme = " ".join((ROOT / "README.md").read_text().split())
-    assert ("of the safety-derived starts only AuxSS has beaten an undirected one, U-SS, on two of the five tasks "
-            "(the narrow bridge and the two crossings), and no comparison with GoalDist-SS is decided anywhere") in readme
-    assert ("Against RFCL's reverse curriculum AuxSS learns faster and is more robust on the two crossings, and on "
-            "the far start at 0.05 only") in readme
+    assert ("In words: AuxSS beats U-SS, learning faster and more robust from ood, on three of the four tasks read at "
+            "49 seeds (the decoy, the far start and the narrow bridge) and on the two crossings at 20; on LavaBridge-v0 "
+            "the two show no difference. No safety-derived start beats GoalDist-SS on any task") in readme
+    assert ("GoalDist-SS learns faster than Omega-SS on LavaBridge-v0 and the far start. Omega-SS beats neither "
+            "undirected distribution anywhere.") in readme
+    assert ("Against RFCL's reverse curriculum AuxSS learns faster and is more robust on the far start and the two "
+            "crossings") in readme and "on the narrow bridge the curriculum learns faster" in readme
+    # results.md: "At 49 seeds every comparison on LavaBridge-v0, the decoy, the far start and the narrow bridge is
+    # decided either way": no comparison of a task read at the second look is short of power
+    [argv] = [argv for argv in COMMANDS if argv[argv.index("--out") + 1] == "docs/report_study"]
+    held_back = {argv[i + 1].split("=")[0] for i, arg in enumerate(argv) if arg == "--task-seeds"}
+    second_look = {task: rows for task, rows in study_rows(report).items() if task not in held_back}
+    assert set(second_look) == {"LavaBridge-v0", "LavaBridgeDecoy-v0", "LavaBridgeFarStart-v0", "LavaBridgeNarrow-v0"}
+    assert all(verdict != UNDECIDED for rows in second_look.values() for *_, verdict in rows)
 
 
 CURRICULUM_ROW = (r"^\| group \| curriculum done \| per seed[^\n]*\n\|[-:|]+\|\n"
@@ -323,32 +339,57 @@ def test_results_md_says_which_seeds_of_the_extension_are_trained_as_results_stu
     assert all(sorted(seeds) == list(range(min(seeds), max(seeds) + 1)) for seeds in held.values())
 
 
-def test_the_seed_extension_trains_exactly_the_groups_the_study_report_leaves_undecided():
-    # read against the 20-seed report: every group of a comparison still open (not enough seeds to decide, or
-    # decided at 0.05 but not at the two-look level), on its task at the study's budget, from the seed after the
-    # study's last to the second look; groups whose every comparison is decided (or that no question compares)
-    # stay at the study's seeds
-    report_text = (ROOT / "docs/report_study/report.md").read_text()
-    open_groups = {(task, method) for task, rows in study_rows(report_text).items()
-                   for pair, _, _, verdict in rows
-                   if verdict == "not enough seeds to decide" or verdict.endswith(" at 0.05 only")
-                   for method in pair.split(" against ")}
+def first_look():
+    """(task, question) -> its answers at the study's first look: results/study read at the study's seeds,
+    every verdict checked at the two-look level of the study report's --looks; and those looks."""
+    from lava_bridge_mj.eval.aggregate import find_runs, group_runs
+    from lava_bridge_mj.eval.study import answer_questions
+
+    [study_report] = [argv for argv in COMMANDS if argv[argv.index("--out") + 1] == "docs/report_study"]
+    looks = tuple(map(int, study_report[study_report.index("--looks") + 1].split(",")))
+    first, last = study_seed_range()
+    groups = group_runs(find_runs(ROOT / "results/study", seeds=range(first, last + 1)))
+    return {(task, question.short): question.answers for task in {g.task for g in groups}
+            for question in answer_questions([g for g in groups if g.task == task], looks)}, looks
+
+
+def test_the_seed_extension_trains_exactly_the_groups_the_first_look_leaves_undecided():
+    # at the first look (the study's 20 seeds): every group of a comparison still open (not enough seeds to
+    # decide, or decided at 0.05 but not at the two-look level), on its task at the study's budget, from the seed
+    # after the study's last to the second look, which is the most seeds any open comparison needs; groups whose
+    # every comparison is decided (or that no question compares) stay at the study's seeds
+    answers, (first_look_seeds, second_look) = first_look()
+    still_open = [answer for (task, _), found in answers.items() for answer in found
+                  if answer.verdict == UNDECIDED or answer.at_one_look_only]
+    open_groups = {(task, method) for (task, _), found in answers.items() for answer in found
+                   if answer in still_open for method in (answer.a, answer.b)}
     study_steps = {task: sweep["--steps"] for sweep in makefile_sweeps("study") for task in sweep["--envs"].split(",")}
-    extension = makefile_sweeps("study-extension")
     cells = extension_groups()
     assert len(cells) == len(set(cells)) and set(cells) == open_groups
-    needed = [int(n) for n in re.findall(r"\| \d+ to (\d+) \|$", section(report_text, "## The study's answers, task by task"),
-                                         re.MULTILINE)]
+    needed = [answer.part.seeds_needed for answer in still_open if answer.verdict == UNDECIDED]
     study_first, study_last = study_seed_range()
     options = {key: value for key, value in makefile_sweeps("study")[0].items()
                if key not in ("--methods", "--envs", "--steps", "--out", "--seeds")}
-    [study_report] = [argv for argv in COMMANDS if argv[argv.index("--out") + 1] == "docs/report_study"]
-    first_look, second_look = map(int, study_report[study_report.index("--looks") + 1].split(","))
-    assert (first_look, second_look) == (study_last - study_first + 1, max(needed))
-    for sweep in extension:
+    assert (first_look_seeds, second_look) == (study_last - study_first + 1, max(needed))
+    for sweep in makefile_sweeps("study-extension"):
         assert sweep["--seeds"] == f"{study_last + 1}-{study_first + second_look - 1}"
         assert all(sweep["--steps"] == study_steps[task] for task in sweep["--envs"].split(","))
         assert {key: value for key, value in sweep.items() if key in options} == options
+
+
+def test_the_study_report_reads_a_tasks_extension_once_every_group_of_it_has_all_its_seeds():
+    # the study report reads the study's and the extension's seeds; a task named in --task-seeds stays at the
+    # study's seeds, and it is named exactly when some group the extension trains on it lacks a seed in results/study
+    [argv] = [argv for argv in COMMANDS if argv[argv.index("--out") + 1] == "docs/report_study"]
+    study_first, study_last = study_seed_range()
+    _, second_look = first_look()[1]
+    assert argv[argv.index("--seeds") + 1] == f"{study_first}-{study_first + second_look - 1}"
+    held_back = dict(argv[i + 1].split("=") for i, arg in enumerate(argv) if arg == "--task-seeds")
+    assert set(held_back.values()) <= {f"{study_first}-{study_last}"}
+    incomplete = {task for task, method in extension_groups()
+                  if not all((ROOT / "results/study" / task / f"{method}-d500" / f"seed{seed}" / "metrics.csv").is_file()
+                             for seed in range(study_first, study_first + second_look))}
+    assert set(held_back) == incomplete
 
 
 def test_every_folder_of_results_is_described_in_its_readme():
