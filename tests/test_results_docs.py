@@ -228,7 +228,8 @@ def test_the_readmes_summary_in_words_still_says_what_the_study_report_decides()
     readme = " ".join((ROOT / "README.md").read_text().split())
     assert ("In words: AuxSS beats U-SS, learning faster and more robust from ood, on three of the four tasks read at "
             "49 seeds (the decoy, the far start and the narrow bridge) and on the two crossings at 20; on LavaBridge-v0 "
-            "the two show no difference. No safety-derived start beats GoalDist-SS on any task") in readme
+            "the two are *no difference found* (a bounded negative). No safety-derived start beats GoalDist-SS on any "
+            "task") in readme
     assert ("GoalDist-SS learns faster than Omega-SS on LavaBridge-v0 and the far start. Omega-SS beats neither "
             "undirected distribution anywhere.") in readme
     assert ("Against RFCL's reverse curriculum AuxSS learns faster and is more robust on the far start and the two "
