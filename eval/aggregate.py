@@ -126,7 +126,7 @@ def find_runs(root: str | Path, budget: float | None = None, seeds: Collection[i
     if not runs:
         chosen = "".join([f" with evaluations at or before step {budget:,.0f}" if budget is not None else "",
                           f" of seeds {sorted(seeds)}" if seeds is not None else "",
-                          "".join(f" ({task}: seeds {sorted(chosen)})" for task, chosen in (task_seeds or {}).items())])
+                          "".join(f" ({task}: seeds {sorted(kept)})" for task, kept in (task_seeds or {}).items())])
         raise ValueError(f"{root} holds no run directory (config.json with metrics.csv){chosen} at any depth")
     return runs
 

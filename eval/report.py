@@ -378,7 +378,8 @@ def main(argv: list[str] | None = None) -> int:
     if unwritable:
         return _error(f"--out {out} {unwritable}")
     try:
-        runs = [run for root in args.dirs for run in find_runs(root, args.budget, args.seeds, task_seeds)]  # before writing
+        # before writing
+        runs = [run for root in args.dirs for run in find_runs(root, args.budget, args.seeds, task_seeds)]
         group_runs(runs)  # refuses a seed given twice
         absent = sorted(set(task_seeds) - {run.task for run in runs})
         if absent:

@@ -21,6 +21,13 @@ ROOT = Path(__file__).resolve().parent.parent
 
 COMMANDS = makefile_commands("report", "report")
 """The argument lists of the `lava-bridge-bench report` lines of the Makefile's report target."""
+[STUDY_REPORT] = [argv for argv in COMMANDS if argv[argv.index("--out") + 1] == "docs/report_study"]
+"""The study report's argument list."""
+
+
+def held_back_tasks():
+    """Task -> seeds, for each task the study report reads at other seeds than its --seeds (--task-seeds)."""
+    return dict(STUDY_REPORT[i + 1].split("=") for i, arg in enumerate(STUDY_REPORT) if arg == "--task-seeds")
 
 
 def test_the_report_target_makes_every_committed_report():
@@ -236,9 +243,7 @@ def test_the_readmes_summary_in_words_still_says_what_the_study_report_decides()
             "crossings") in readme and "on the narrow bridge the curriculum learns faster" in readme
     # results.md: "At 49 seeds every comparison on LavaBridge-v0, the decoy, the far start and the narrow bridge is
     # decided either way": no comparison of a task read at the second look is short of power
-    [argv] = [argv for argv in COMMANDS if argv[argv.index("--out") + 1] == "docs/report_study"]
-    held_back = {argv[i + 1].split("=")[0] for i, arg in enumerate(argv) if arg == "--task-seeds"}
-    second_look = {task: rows for task, rows in study_rows(report).items() if task not in held_back}
+    second_look = {task: rows for task, rows in study_rows(report).items() if task not in held_back_tasks()}
     assert set(second_look) == {"LavaBridge-v0", "LavaBridgeDecoy-v0", "LavaBridgeFarStart-v0", "LavaBridgeNarrow-v0"}
     assert all(verdict != UNDECIDED for rows in second_look.values() for *_, verdict in rows)
 
@@ -340,18 +345,22 @@ def test_results_md_says_which_seeds_of_the_extension_are_trained_as_results_stu
     assert all(sorted(seeds) == list(range(min(seeds), max(seeds) + 1)) for seeds in held.values())
 
 
+def study_looks():
+    """The seeds per group of the study's two looks, as the study report's --looks gives them."""
+    first, second = map(int, STUDY_REPORT[STUDY_REPORT.index("--looks") + 1].split(","))
+    return first, second
+
+
 def first_look():
     """(task, question) -> its answers at the study's first look: results/study read at the study's seeds,
-    every verdict checked at the two-look level of the study report's --looks; and those looks."""
+    every verdict checked at the two-look level of the study report's --looks."""
     from lava_bridge_mj.eval.aggregate import find_runs, group_runs
     from lava_bridge_mj.eval.study import answer_questions
 
-    [study_report] = [argv for argv in COMMANDS if argv[argv.index("--out") + 1] == "docs/report_study"]
-    looks = tuple(map(int, study_report[study_report.index("--looks") + 1].split(",")))
     first, last = study_seed_range()
     groups = group_runs(find_runs(ROOT / "results/study", seeds=range(first, last + 1)))
     return {(task, question.short): question.answers for task in {g.task for g in groups}
-            for question in answer_questions([g for g in groups if g.task == task], looks)}, looks
+            for question in answer_questions([g for g in groups if g.task == task], study_looks())}
 
 
 def test_the_seed_extension_trains_exactly_the_groups_the_first_look_leaves_undecided():
@@ -359,15 +368,14 @@ def test_the_seed_extension_trains_exactly_the_groups_the_first_look_leaves_unde
     # decide, or decided at 0.05 but not at the two-look level), on its task at the study's budget, from the seed
     # after the study's last to the second look, which is the most seeds any open comparison needs; groups whose
     # every comparison is decided (or that no question compares) stay at the study's seeds
-    answers, (first_look_seeds, second_look) = first_look()
-    still_open = [answer for (task, _), found in answers.items() for answer in found
+    first_look_seeds, second_look = study_looks()
+    still_open = [(task, answer) for (task, _), found in first_look().items() for answer in found
                   if answer.verdict == UNDECIDED or answer.at_one_look_only]
-    open_groups = {(task, method) for (task, _), found in answers.items() for answer in found
-                   if answer in still_open for method in (answer.a, answer.b)}
+    open_groups = {(task, method) for task, answer in still_open for method in (answer.a, answer.b)}
     study_steps = {task: sweep["--steps"] for sweep in makefile_sweeps("study") for task in sweep["--envs"].split(",")}
     cells = extension_groups()
     assert len(cells) == len(set(cells)) and set(cells) == open_groups
-    needed = [answer.part.seeds_needed for answer in still_open if answer.verdict == UNDECIDED]
+    needed = [answer.part.seeds_needed for _, answer in still_open if answer.verdict == UNDECIDED]
     study_first, study_last = study_seed_range()
     options = {key: value for key, value in makefile_sweeps("study")[0].items()
                if key not in ("--methods", "--envs", "--steps", "--out", "--seeds")}
@@ -381,11 +389,10 @@ def test_the_seed_extension_trains_exactly_the_groups_the_first_look_leaves_unde
 def test_the_study_report_reads_a_tasks_extension_once_every_group_of_it_has_all_its_seeds():
     # the study report reads the study's and the extension's seeds; a task named in --task-seeds stays at the
     # study's seeds, and it is named exactly when some group the extension trains on it lacks a seed in results/study
-    [argv] = [argv for argv in COMMANDS if argv[argv.index("--out") + 1] == "docs/report_study"]
     study_first, study_last = study_seed_range()
-    _, second_look = first_look()[1]
-    assert argv[argv.index("--seeds") + 1] == f"{study_first}-{study_first + second_look - 1}"
-    held_back = dict(argv[i + 1].split("=") for i, arg in enumerate(argv) if arg == "--task-seeds")
+    _, second_look = study_looks()
+    assert STUDY_REPORT[STUDY_REPORT.index("--seeds") + 1] == f"{study_first}-{study_first + second_look - 1}"
+    held_back = held_back_tasks()
     assert set(held_back.values()) <= {f"{study_first}-{study_last}"}
     incomplete = {task for task, method in extension_groups()
                   if not all((ROOT / "results/study" / task / f"{method}-d500" / f"seed{seed}" / "metrics.csv").is_file()
