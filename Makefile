@@ -73,15 +73,12 @@ study: setup
 # crossings), the tasks with the largest undecided effects first, the two crossings' 300k groups last
 # (a job there takes three times as long, so the 100k groups land first). SAC and HySAC+AuxSS, which no
 # question compares, stay at 20. The report reads a task's extension once, when every one of its groups here
-# has its 49 seeds (docs/design.md: a target, not a stopping rule): STUDY_REPORT_SEEDS, and STUDY_TASK_SEEDS
-# keeps each task still training at the study's 20 seeds. About 17 hours.
+# has its 49 seeds (docs/design.md: a target, not a stopping rule): STUDY_REPORT_SEEDS. About 17 hours.
 STUDY_EXTENSION_SEEDS := 20-48
 # The seeds per group of the study's two readings: every verdict is also checked at Pocock's two-look level
 STUDY_LOOKS := 20,49
-# The seeds the study report reads: the study's and the extension's; the tasks whose extension is still
-# training, at the study's seeds until all their groups here have 49
+# The seeds the study report reads: the study's and the extension's
 STUDY_REPORT_SEEDS := 0-48
-STUDY_TASK_SEEDS := --task-seeds LavaBridgeTwoCrossings-v0=$(STUDY_SEEDS)
 STUDY_EXTENSION := $(BIN)/lava-bridge-bench sweep --seeds $(STUDY_EXTENSION_SEEDS) $(STUDY_SWEEP_OPTIONS)
 study-extension: setup
 	$(STUDY_EXTENSION) --methods auxss,uniform_ss,omega_ss,goaldist_ss,reverse_ss --envs LavaBridgeDecoy-v0 \
@@ -116,7 +113,7 @@ report: setup
 	$(BIN)/lava-bridge-bench report results/suite/screening --budget 100000 --seeds 100-104 --out docs/report_screening
 	$(BIN)/lava-bridge-bench report results/suite/screening/LavaBridgeTwoCrossings-v0 --budget 300000 --seeds 100-104 \
 	    --out docs/report_screening_300k
-	$(BIN)/lava-bridge-bench report results/study --seeds $(STUDY_REPORT_SEEDS) $(STUDY_TASK_SEEDS) --looks $(STUDY_LOOKS) \
+	$(BIN)/lava-bridge-bench report results/study --seeds $(STUDY_REPORT_SEEDS) --looks $(STUDY_LOOKS) \
 	    --out docs/report_study
 	$(BIN)/lava-bridge-bench report results/study/LavaBridgeFarStart-v0/auxss-d500 \
 	    results/study/LavaBridgeFarStart-v0/reverse_ss-d500 results/study_ablations/LavaBridgeFarStart-v0 \
