@@ -67,7 +67,7 @@ study: setup
 	$(BIN)/lava-bridge-bench export runs/study results/study
 
 # The seed extension: after the first 20 seeds the study's table of answers asks for at most 46-49 seeds per
-# group, so every group of a comparison still open trains seeds 20-48 (open: not enough seeds to decide, or
+# group, so every group of a comparison still open trains seeds 20-48 (open: undecided, or
 # decided at 0.05 only, not at the two-look level of STUDY_LOOKS): the four start distributions of the first
 # question on every task, the reverse curriculum where the second is open (every task but the two
 # crossings), the tasks with the largest undecided effects first, the two crossings' 300k groups last

@@ -22,26 +22,37 @@ MATCHED seeds: only the seeds both groups have, each up to the last evaluation s
 - a claim about robustness: Fisher's exact test on the counts of robust seeds and the permutation test
   of the difference in mean late-window success from ood.
 
-The p-values of the comparisons settled together (`settle`) form one family, Holm-corrected
-(`stats.holm`): eval/findings.py settles all the findings' comparisons at once, eval/study.py each
-question's on each task. A test rejects when its adjusted p-value is at most `ALPHA`. A claim that A
-is better than B is **supported** when a test rejects with A ahead and none rejects with B ahead;
-**contradicted** when a test rejects with B ahead and none with A ahead. When none rejects, the power
-decides what that means: the exact power of Fisher's test at `ALPHA` with these seeds (eval/statistics.py's `power`) to
-detect the effect the claim implies, a difference of `EFFECT` (0.3) in the rate, placed around the
-observed pooled rate (pooled - 0.15 against pooled + 0.15, shifted to stay within [0, 1]). Below
-`POWER` (80%) the verdict is **not enough seeds to decide**, with the seeds per group that would give
-80% (`seeds_needed`); at or above it, **no difference found**. The power is that of one test at
-`ALPHA`; the correction across the family only lowers it, so an adequate power here is an upper bound.
-A claim that A *matches* B is supported when no test rejects and the power is adequate, contradicted
-when a test rejects either way, and not enough seeds to decide otherwise. A claim that the paper
-states as a ratio of steps (finding 2's "a third of the steps") is tested as the comparison it implies,
-sooner or more often: a ratio of medians has no test when seeds never reach 0.8.
+**The verdicts** of the comparisons settled together (`settle`, one family: eval/findings.py settles all
+the findings' comparisons at once, eval/study.py each question on each task), at a level `alpha` (`ALPHA`,
+or the stricter level of a study read at two looks):
+
+- **supported** (A ahead) when a test rejects, its p-value Holm-corrected across every test of the family
+  (`stats.holm`), with A ahead, and none rejects with B ahead; **contradicted** (B ahead) the other way
+  round;
+- **no difference found** when no test rejects and both effects of the comparison lie within
+  +-`stats.EQUIVALENCE_MARGIN` (0.3) by the two one-sided tests (TOST): the rate difference of the count
+  test (Newcombe's interval), and for the second test Cliff's delta of the steps to 0.8 (Brunner and
+  Munzel's interval) or the difference in mean late-window success from ood (Welch's interval). Each
+  comparison's TOST p-value is the larger of its two effects' (both must hold), Holm-corrected across the
+  family's comparisons; equivalently, each effect's interval at 1 - 2 x the level of the comparison's Holm
+  step lies inside the margin, and that interval is shown beside the verdict (`Part.equivalence`);
+- **undecided** otherwise, with the seeds per group that would decide it at the levels the family is read
+  at (`seeds_to_decide`): enough for Fisher's test at the strictest Holm step (`alpha` over the family's
+  tests) to detect a difference of `EFFECT` (0.3) around the pooled rate with 80% power, and for the
+  equivalence test at its strictest step (`alpha` over the family's comparisons) to bound the rate
+  difference within the margin with 80% power if the rates are equal.
+
+All the tests are exact or analytic (eval/statistics.py): no verdict depends on a random number. A claim
+that A *matches* B is supported when no test rejects and the equivalence test does, contradicted when a
+test rejects either way, and undecided otherwise. A claim that the paper states as a ratio of steps
+(finding 2's "a third of the steps") is tested as the comparison it implies, sooner or more often: a
+ratio of medians has no test when seeds never reach 0.8. The tests of each aspect are declared once, in
+`TESTS`.
 
 **A claim about one group alone** ("SAC stays near 0") counts the seeds with the event the claim names
 and takes the exact (Clopper-Pearson) 95% interval of its rate (`stats.reach_count`): a claim that few
 seeds do it is supported when the interval lies below `MOST` (0.5), contradicted when it lies above,
-and otherwise not enough seeds to decide, with the fewest seeds at which the observed rate's interval
+and otherwise undecided, with the fewest seeds at which the observed rate's interval
 would leave 0.5 out. (A claim that most seeds do it: the other way round.)
 """
 
@@ -49,6 +60,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -58,7 +70,8 @@ from lava_bridge_mj.eval.summary import THRESHOLD
 
 ALPHA, POWER = stats.ALPHA, stats.POWER
 EFFECT = 0.3
-"""The difference in rate a comparison claim implies, for the power of a test that does not reject."""
+"""The difference in rate a comparison claim implies, for the power of a test that does not reject; the
+equivalence margin (`stats.EQUIVALENCE_MARGIN`) is the same 0.3."""
 MOST = 0.5
 """A claim about one group alone is about most seeds (rate above this) or few (below)."""
 ROBUST = 0.5
@@ -67,7 +80,7 @@ TOLERANCE = 1e-9
 """Success rates are multiples of 1/50 that may come out as 0.10000000000000002."""
 
 SUPPORTED, CONTRADICTED = "supported", "contradicted"
-UNDECIDED, NO_DIFFERENCE = "not enough seeds to decide", "no difference found"
+UNDECIDED, NO_DIFFERENCE = "undecided", "no difference found"
 NOT_RUN = "not run"
 """A group a claim would compare with is absent."""
 
@@ -84,9 +97,12 @@ class Part:
     power: str = ""
     """The power to detect the claimed effect and the seeds needed, where no test rejected."""
     seeds_needed: int | None = None
-    """Where no test of a comparison rejected: the fewest seeds per group that give Fisher's test `POWER`
-    to detect `EFFECT` around the observed rates (`power_text`); None where a test rejected, for a claim
-    about one group, and beyond `stats.MAX_SEEDS`."""
+    """Where a comparison is undecided: the fewest seeds per group that would decide it at the family's
+    levels (`seeds_to_decide`); None where it is decided, for a claim about one group, and beyond
+    `stats.MAX_SEEDS`."""
+    equivalence: str = ""
+    """Where no test rejected: each effect's interval at the level its equivalence test is read at, and
+    the TOST p-value."""
 
 
 def is_default(group: Group) -> bool:
@@ -132,21 +148,82 @@ def _count(reach: stats.ReachCount) -> str:
     return f"{reach.reached}/{reach.seeds} [{reach.low:.2f}, {reach.high:.2f}]"
 
 
+# --- the tests, declared once ----------------------------------------------------------------------
+@dataclasses.dataclass(frozen=True)
+class Test:
+    """One test of a comparison, on the per-seed outcomes of A and B: its two-sided p-value and the effect
+    its equivalence is bounded on; the effect's sign says which side is ahead."""
+
+    name: str
+    words: str
+    """What A ahead means, as a verdict says it."""
+    p: Callable[[np.ndarray, np.ndarray], float]
+    effect: Callable[[np.ndarray, np.ndarray], stats.Effect]
+    event: Callable[[np.ndarray], np.ndarray] | None = None
+    """For a test on counts of seeds: which seeds count."""
+
+
+def _counts(event: Callable[[np.ndarray], np.ndarray], a: np.ndarray, b: np.ndarray) -> tuple[int, int, int, int]:
+    return int(event(a).sum()), len(a), int(event(b).sum()), len(b)
+
+
+def _count_test(name: str, words: str, event: Callable[[np.ndarray], np.ndarray]) -> Test:
+    """Fisher's exact test on the counts of seeds whose outcome shows `event`, bounded on the rate difference."""
+    return Test(name, words, lambda a, b: stats.fisher_p(*_counts(event, a, b)),
+                lambda a, b: stats.rate_effect(*_counts(event, a, b)), event)
+
+
+def reached(first_reach: np.ndarray) -> np.ndarray:
+    return np.isfinite(first_reach)
+
+
+def robust(late: np.ndarray) -> np.ndarray:
+    return late >= ROBUST - TOLERANCE
+
+
+TESTS = {
+    "learns faster": (
+        _count_test("Fisher's test on reach counts", "reaches 0.8 more often", reached),
+        Test("rank test on steps to 0.8", "reaches 0.8 sooner", stats.rank_p, stats.sooner_effect)),
+    "more robust": (
+        _count_test("Fisher's test on robust-seed counts", "has more robust seeds", robust),
+        Test("permutation test on late ood success", "has higher late success from ood", stats.permutation_p,
+             stats.mean_effect)),
+}
+"""Each aspect a comparison is made on, and its two tests: a count test and a rank or permutation test.
+The per-seed outcome of *learns faster* is the first step at 0.8 (inf: never), of *more robust* the mean
+late-window success from ood."""
+TESTS_PER_COMPARISON = 2
+
+
 # --- comparisons, before and after the correction ----------------------------------------------------
 @dataclasses.dataclass(frozen=True)
 class Pending:
-    """A comparison claim with its raw p-values, waiting for the family's correction."""
+    """A comparison claim with its raw p-values and effects, waiting for the family's correction."""
 
     claim: str
     measured: str
     p: dict[str, float]
     """Test name -> raw two-sided p-value."""
-    a_ahead: dict[str, bool | None]
-    """Test name -> True when A's side is ahead, False when B's, None when they are level."""
+    effects: dict[str, stats.Effect]
+    """Test name -> A's difference from B that the test is about, with its interval."""
     counts: tuple[int, int, int, int]
-    """A's events and seeds, B's events and seeds: the binary outcome behind the power."""
+    """A's events and seeds, B's events and seeds: the binary outcome behind the count test."""
     matches: bool = False
     """The claim is that A matches B (no difference), not that A is better."""
+
+    def a_ahead(self, name: str) -> bool | None:
+        """True when A's side is ahead on that test's effect, False when B's, None when they are level."""
+        estimate = self.effects[name].estimate
+        return None if abs(estimate) <= TOLERANCE else estimate > 0
+
+
+def _pending(aspect: str, a: np.ndarray, b: np.ndarray, claim: str, measured: str, matches: bool) -> Pending:
+    """The aspect's tests made on the per-seed outcomes `a` and `b`."""
+    tests = TESTS[aspect]
+    event = next(t.event for t in tests if t.event is not None)
+    return Pending(claim, measured, {t.name: t.p(a, b) for t in tests}, {t.name: t.effect(a, b) for t in tests},
+                   _counts(event, a, b), matches)
 
 
 def reach_comparison(a: Group, b: Group, claim: str, matches: bool = False) -> Pending | None:
@@ -157,14 +234,11 @@ def reach_comparison(a: Group, b: Group, claim: str, matches: bool = False) -> P
         return None
     a, b = pair
     outcomes = [stats.seed_outcomes(g, THRESHOLD) for g in (a, b)]
-    c = stats.compare(*outcomes)
-    ra, rb = c.a.reach, c.b.reach
-    p = {"Fisher's test on reach counts": c.p["reach"], "rank test on steps to 0.8": c.p["steps"]}
-    ahead = {"Fisher's test on reach counts": None if ra.rate == rb.rate else ra.rate > rb.rate,
-             "rank test on steps to 0.8": None if c.sooner == 0.5 else c.sooner > 0.5}
-    measured = (f"seeds {_seeds_text(sorted(a.seeds))} to step {c.a.step:,.0f}: reached 0.8 {_count(ra)} against "
-                f"{_count(rb)}, P(A sooner) = {c.sooner:.2f}")
-    return Pending(claim, measured, p, ahead, (ra.reached, ra.seeds, rb.reached, rb.seeds), matches)
+    steps = [o.first_reach for o in outcomes]
+    sooner = (stats.sooner_effect(*steps).estimate + 1) / 2
+    measured = (f"seeds {_seeds_text(sorted(a.seeds))} to step {outcomes[0].step:,.0f}: reached 0.8 "
+                f"{_count(outcomes[0].reach)} against {_count(outcomes[1].reach)}, P(A sooner) = {sooner:.2f}")
+    return _pending("learns faster", *steps, claim, measured, matches)
 
 
 def late_ood(group: Group) -> np.ndarray:
@@ -183,18 +257,11 @@ def robust_comparison(a: Group, b: Group, claim: str) -> Pending | None:
         return None
     a, b = pair
     late = [late_ood(g) for g in (a, b)]
-    robust = [stats.reach_count(int((x >= ROBUST - TOLERANCE).sum()), len(x)) for x in late]
-    means = [float(x.mean()) for x in late]
-    p = {"Fisher's test on robust-seed counts": stats.fisher_p(robust[0].reached, robust[0].seeds,
-                                                              robust[1].reached, robust[1].seeds),
-         "permutation test on late ood success": stats.permutation_p(*late)}
-    ahead = {"Fisher's test on robust-seed counts": None if robust[0].rate == robust[1].rate
-             else robust[0].rate > robust[1].rate,
-             "permutation test on late ood success": None if means[0] == means[1] else means[0] > means[1]}
+    counts = [stats.reach_count(int(robust(x).sum()), len(x)) for x in late]
     measured = (f"seeds {_seeds_text(sorted(a.seeds))} to step {a.steps[-1]:,.0f}: mean late-window success from ood "
-                f"{means[0]:.2f} against {means[1]:.2f}, robust seeds (>= {ROBUST:g}) {_count(robust[0])} against "
-                f"{_count(robust[1])}")
-    return Pending(claim, measured, p, ahead, (robust[0].reached, robust[0].seeds, robust[1].reached, robust[1].seeds))
+                f"{late[0].mean():.2f} against {late[1].mean():.2f}, robust seeds (>= {ROBUST:g}) {_count(counts[0])} "
+                f"against {_count(counts[1])}")
+    return _pending("more robust", *late, claim, measured, False)
 
 
 def claimed_rates(events_a: int, seeds_a: int, events_b: int, seeds_b: int) -> tuple[float, float]:
@@ -204,45 +271,72 @@ def claimed_rates(events_a: int, seeds_a: int, events_b: int, seeds_b: int) -> t
     return low + EFFECT, low
 
 
-def power_text(counts: tuple[int, int, int, int]) -> tuple[float, int | None, str]:
-    """The power of Fisher's test to detect `EFFECT` around the pooled rate with these seeds, the seeds
-    per group that give `POWER` (None beyond `stats.MAX_SEEDS`), and the two in words."""
+def seeds_to_decide(counts: tuple[int, int, int, int], difference_level: float,
+                    equivalence_level: float) -> tuple[int | None, str]:
+    """The seeds per group that would decide a comparison no test decides, at the levels the family is read
+    at: enough for Fisher's test at `difference_level` to detect `EFFECT` around the pooled rate with
+    `POWER`, and for the equivalence test at `equivalence_level` to show the rates within the margin with
+    `POWER` if they are equal (the larger of the two; None beyond `stats.MAX_SEEDS`), and the two in words."""
     high, low = claimed_rates(*counts)
-    power = stats.power(high, low, counts[1], counts[3])
-    needed = stats.seeds_needed(high, low)
-    text = (f"power {power:.2f} to detect {high:.2f} against {low:.2f}; "
-            + (f"{needed} seeds per group give {POWER:.0%}" if needed else f"more than {stats.MAX_SEEDS} seeds "
-               f"per group needed for {POWER:.0%}"))
-    return power, needed, text
+    power = stats.power(high, low, counts[1], counts[3], alpha=difference_level)
+    to_detect = stats.seeds_needed(high, low, alpha=difference_level)
+    pooled = (counts[0] + counts[2]) / (counts[1] + counts[3])
+    to_bound = stats.seeds_for_equivalence(pooled, equivalence_level)
+    needed = None if to_detect is None or to_bound is None else max(to_detect, to_bound)
+    def seeds(n: int | None) -> str:
+        return f"{n}" if n else f"more than {stats.MAX_SEEDS}"
+    text = (f"power {power:.2f} to detect {high:.2f} against {low:.2f} at {difference_level:.3g}; {POWER:.0%} power "
+            f"needs {seeds(to_detect)} seeds per group for that and {seeds(to_bound)} to bound a difference at "
+            f"{pooled:.2f} within +-{stats.EQUIVALENCE_MARGIN:g} at {equivalence_level:.3g}")
+    return needed, text
+
+
+def _interval_text(effect: stats.Effect, confidence: float) -> str:
+    low, high = effect.interval(confidence)
+    return f"{effect.measure} {effect.estimate:+.2f} [{low:+.2f}, {high:+.2f}]"
 
 
 def settle(pending: list[Pending], untested: int = 0, alpha: float = ALPHA) -> list[Part]:
-    """The verdicts of the comparisons, their p-values Holm-corrected as one family and rejected at
-    `alpha` (the power beside a verdict stays at `ALPHA`). `untested` p-values of the family are not
-    computed yet (comparisons whose runs are still to come): each counts as 1, so the correction is over
-    the whole family, and as Holm's adjusted p-values never rise when another p-value falls, a rejection
-    made now stands once they are computed."""
+    """The verdicts of the comparisons, read at `alpha` as one family. Differences: every test's p-value
+    Holm-corrected across the family. Equivalence: per comparison the larger of its two tests' TOST
+    p-values (both effects within the margin), Holm-corrected across the family's comparisons. `untested`
+    comparisons of the family are not made yet (their runs are still to come): each counts its p-values as
+    1, so the correction is over the whole family, and as Holm's adjusted p-values never rise when another
+    p-value falls, a verdict given now stands once they are made."""
     raw = [p for c in pending for p in c.p.values()]
-    adjusted = iter(stats.holm(raw + [1.0] * untested))
+    adjusted = iter(stats.holm(raw + [1.0] * (TESTS_PER_COMPARISON * untested)))
+    equivalence = [max(stats.equivalence_p(e) for e in c.effects.values()) for c in pending]
+    comparisons = len(pending) + untested
+    equivalence_adjusted = stats.holm(equivalence + [1.0] * untested)
+    # the level of each comparison's own Holm step: its interval at 1 - 2 x that level is what TOST reads
+    order = np.argsort(equivalence, kind="stable")
+    step_level = np.empty(len(pending))
+    step_level[order] = alpha / (comparisons - np.arange(len(pending)))
     parts = []
-    for c in pending:
+    for i, c in enumerate(pending):
         tests, rejected = [], set()
         for name, p in c.p.items():
             adj = next(adjusted)
             tests.append(f"{name} p = {p:.3g} (Holm {adj:.3g})" if math.isfinite(p) else f"{name}: no test")
-            if math.isfinite(adj) and adj <= alpha and c.a_ahead[name] is not None:
-                rejected.add(c.a_ahead[name])
-        power, needed, text = power_text(c.counts)
+            if math.isfinite(adj) and adj <= alpha and c.a_ahead(name) is not None:
+                rejected.add(c.a_ahead(name))
+        equivalent = equivalence_adjusted[i] <= alpha
+        confidence = 1 - 2 * step_level[i]
+        bounds = (f"within +-{stats.EQUIVALENCE_MARGIN:g} at {confidence:.2%}: "
+                  + ", ".join(_interval_text(e, confidence) for e in c.effects.values())
+                  + f"; TOST p = {equivalence[i]:.3g} (Holm {equivalence_adjusted[i]:.3g})")
         if c.matches:
-            verdict = CONTRADICTED if rejected else SUPPORTED if power >= POWER else UNDECIDED
+            verdict = CONTRADICTED if rejected else SUPPORTED if equivalent else UNDECIDED
         elif rejected == {True}:
             verdict = SUPPORTED
         elif rejected == {False}:
             verdict = CONTRADICTED
         else:
-            verdict = NO_DIFFERENCE if power >= POWER and not rejected else UNDECIDED
-        parts.append(Part(c.claim, c.measured, verdict, "; ".join(tests), "" if rejected else text,
-                          None if rejected else needed))
+            verdict = NO_DIFFERENCE if equivalent and not rejected else UNDECIDED
+        needed, power = (None, "") if rejected or equivalent else seeds_to_decide(
+            c.counts, alpha / (TESTS_PER_COMPARISON * comparisons), alpha / comparisons)
+        parts.append(Part(c.claim, c.measured, verdict, "; ".join(tests), power, needed,
+                          "" if rejected else bounds))
     return parts
 
 

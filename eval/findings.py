@@ -7,7 +7,7 @@ to the last step every one of them has (`common_step`), and the p-values of ever
 finding form one Holm family.
 
 **A finding** whose parts must all hold (findings 1-6: a conjunction) takes the weakest of its parts'
-verdicts, in the order contradicted, no difference found, not enough seeds to decide, supported; it is
+verdicts, in the order contradicted, no difference found, undecided, supported; it is
 *missing runs* when a group it needs is absent (finding 2 stands on whichever of its four baselines
 were run and names the others *not run*). Findings 7 and 8 are one comparison per method or
 variant, and are given per part (one verdict when all of them agree).

@@ -131,14 +131,14 @@ def pairwise_section(groups: list[Group], threshold: float, all_pairs: bool = Fa
              f"Holm-adjusted across the {counted(len(compared), 'pair')} of this table, one family per column: "
              f"Fisher's exact test on the reach counts; Mann-Whitney U on the steps to {threshold:g}, a seed that "
              f"never got there tied last; permutation tests of the difference in mean final and late-window success "
-             f"from p0 (the last third of the steps). Rank and permutation p-values use every split of the seeds "
-             f"when there are at most {stats.PERMUTATIONS:,}, else {stats.PERMUTATIONS:,} random ones (seed "
-             f"{stats.PERMUTATION_SEED}). P(A > B) is rliable's probability of improvement on late-window success. "
+             f"from p0 (the last third of the steps). Rank and permutation p-values are exact: every split of the "
+             f"seeds is counted. P(A > B) is rliable's probability of improvement on late-window success. "
              f"Power is that of Fisher's test at {stats.ALPHA:g} with these seeds if the observed reach rates were "
              f"the true ones; seeds needed is the fewest seeds per group that give {stats.POWER:.0%} power there "
              f"(exact, by enumerating the binomial outcomes; '> {stats.MAX_SEEDS}' beyond); both read '-' when the "
              f"observed rates are equal. The verdict names each test that rejects at {stats.ALPHA:g} after the "
-             f"correction, and is *not enough seeds to decide* when none does: the groups are then not ranked. A "
+             f"correction, and is *undecided* when none does: the groups are then not ranked (this table tests no "
+             f"equivalence, so it never says *no difference found*). A "
              f"group of one seed gets no rank or permutation test ('-')."]
     needed = stats.seeds_needed(0.5, 0.8)
     lines[0] += (f" For reference, a reach rate of 0.8 against 0.5 needs {needed} seeds per group "
@@ -156,6 +156,21 @@ def pairwise_section(groups: list[Group], threshold: float, all_pairs: bool = Fa
     return lines + not_compared
 
 
+_NO_DIFFERENCE_RULE = (
+    f"Where no test rejects: *no difference found* when the two one-sided tests (TOST) bound both effects of "
+    f"the comparison within +-{stats.EQUIVALENCE_MARGIN:g} (the rate difference of the count test; Cliff's delta "
+    f"of the steps to 0.8, or the difference in mean late-window success from ood, of the other), Holm-corrected "
+    f"across the family's comparisons, the intervals at the level of each comparison's Holm step shown beside "
+    f"it; *undecided* otherwise, with the seeds per group that would give {POWER:.0%} power at the family's "
+    f"strictest levels both to detect a difference of {EFFECT:g} in the rate (Fisher's test) and to bound a tie "
+    f"within the margin (eval/claims.py states the rules).")
+
+
+def _unrejected(part) -> str:
+    """What a comparison no test decides says: its equivalence intervals, and the seeds to decide it."""
+    return "; ".join(filter(None, [part.equivalence, part.power])) or "-"
+
+
 def findings_section(groups: list[Group], heading: str = "##") -> list[str]:
     """The paper's findings, each decided by the tests eval/claims.py and eval/findings.py state, and the tests
     behind them."""
@@ -167,16 +182,14 @@ def findings_section(groups: list[Group], heading: str = "##") -> list[str]:
              f"configurations only but in finding 8). A comparison uses matched seeds, those both groups have, "
              f"each up to the last step both have; its two-sided p-values are Holm-corrected as one family, the "
              f"{sum(tested)} p-values of the {len(tested)} comparisons of this table, and a test rejects at "
-             f"{ALPHA:g}. Where none rejects, the power is that of Fisher's exact test at {ALPHA:g} with these "
-             f"seeds to detect a difference of {EFFECT:g} in the rate around the pooled observed rate: *not "
-             f"enough seeds to decide* below {POWER:.0%}, *no difference found* at or above. A claim about one "
-             f"group uses the exact 95% interval of its rate against {MOST:g}.{cut}", "",
+             f"{ALPHA:g}. {_NO_DIFFERENCE_RULE} A claim about one group uses the exact 95% interval of its rate "
+             f"against {MOST:g}.{cut}", "",
              "| # | claim | verdict |", "|---:|---|---|"]
     lines += [f"| {f.number} | {f.claim} | **{f.verdict}** |" for f in found]
     lines += ["", f"{heading}# The tests behind the verdicts", "",
-              "| # | claim tested (A against B) | measured | tests: p (Holm-adjusted) | power, where no test rejects "
-              "| verdict |", "|---:|---|---|---|---|---|"]
-    lines += [f"| {f.number} | {part.claim} | {part.measured} | {part.tests or '-'} | {part.power or '-'} | "
+              "| # | claim tested (A against B) | measured | tests: p (Holm-adjusted) | where no test rejects: "
+              "equivalence, or the seeds to decide | verdict |", "|---:|---|---|---|---|---|"]
+    lines += [f"| {f.number} | {part.claim} | {part.measured} | {part.tests or '-'} | {_unrejected(part)} | "
               f"**{part.verdict}** |" for f in found for part in f.parts]
     return lines
 
@@ -196,9 +209,7 @@ def study_section(questions: list[Question], heading: str = "##") -> list[str]:
              f"The effect is A's rate minus B's of the outcome behind Fisher's test, with Newcombe's 95% "
              f"interval; it describes the size, the tests decide (Fisher's test conditions on the total and is "
              f"the more conservative, so at a few seeds the interval can leave 0 out while no test rejects). "
-             f"Where no test rejects, *not enough seeds to decide* when Fisher's test has less than "
-             f"{POWER:.0%} power to detect a difference of {EFFECT:g} in the rate (with the seeds per group "
-             f"that would give it), *no difference found* otherwise."]
+             f"{_NO_DIFFERENCE_RULE}"]
     looks = questions[0].looks
     if looks is not None:
         lines[-1] += (f" The study reads its comparisons twice, at {looks[0]} and again at {looks[1]} seeds per group "
@@ -209,13 +220,13 @@ def study_section(questions: list[Question], heading: str = "##") -> list[str]:
     for number, question in enumerate(questions, 1):
         lines += ["", f"{heading}# {number}. {question.text}", "", f"**{question.summary}.**", "",
                   "| A against B | aspect | measured | effect: A - B [95% CI] | tests: p (Holm-adjusted) | "
-                  "power, where no test rejects | verdict |", "|---|---|---|---:|---|---|---|"]
+                  "where no test rejects: equivalence, or the seeds to decide | verdict |", "|---|---|---|---:|---|---|---|"]
         for answer in question.answers:
             part, effect = answer.part, answer.effect
             effect_text = f"{effect.difference:+.2f} [{effect.low:+.2f}, {effect.high:+.2f}]" if effect else "-"
             lines.append(f"| {answer.a} against {answer.b} | {answer.aspect} | {part.measured if part else '-'} | "
                          f"{effect_text} | {(part.tests if part else '') or '-'} | "
-                         f"{(part.power if part else '') or '-'} | **{answer.verdict}** |")
+                         f"{_unrejected(answer.read) if part else '-'} | **{answer.verdict}** |")
     return lines
 
 
@@ -228,8 +239,7 @@ def study_overview(answers: dict[str, list[Question]]) -> list[str]:
         return []
     lines = ["Each task's answers to the study's questions, from its section \"The study's questions\" below: "
              "how many of a question's comparisons give each verdict, the comparisons a test decided, and the "
-             f"seeds per group that would give Fisher's test {POWER:.0%} power to detect a difference of "
-             f"{EFFECT:g} in the rate on the comparisons that are *not enough seeds to decide* (their range; "
+             "seeds per group that would decide the *undecided* comparisons at the question's levels (their range; "
              "'-' where none is): what more seeds for the task would have to reach.", "",
              "| task | question | verdicts | decided | seeds needed where undecided |", "|---|---|---|---|---:|"]
     looks = next(q.looks for questions in answered.values() for q in questions.values())

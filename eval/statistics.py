@@ -11,12 +11,15 @@ also states, per group and per pair of groups:
   given size comes from one hypergeometric distribution, which is what lets `power` enumerate all
   outcomes exactly.
 - **Rank test on steps to threshold**: Mann-Whitney U (two-sided) with every seed that never got
-  there tied in last place, its p-value from the permutation distribution of U (exact when there are
-  at most `PERMUTATIONS` distinct splits of the seeds, else `PERMUTATIONS` random ones), so the many
+  there tied in last place, its p-value from the exact permutation distribution of U, so the many
   ties are handled without a normal approximation.
 - **Permutation tests** on the final success from p0 and on each seed's mean over the late window
-  (eval/aggregate.py's last third): the difference of the group means, two-sided, with the same
-  number of permutations and a fixed seed (`PERMUTATION_SEED`): the same runs give the same p-values.
+  (eval/aggregate.py's last third): the difference of the group means, two-sided.
+- Both permutation p-values are **exact**: every split of the seeds into the two groups is counted, by
+  dynamic programming over the distinct values (`permutation_sum_p`; 49 against 49 seeds have 2.5e28
+  splits), so no verdict depends on a random number. Values off any grid (never the case for success
+  rates of finitely many episodes, or for midranks) fall back to random splits, drawn until the p-value's
+  99.9% interval leaves the level it is compared with on one side.
 - **Holm's correction** across the pairs a report tests, one family per test.
 - **Difference in rate** between two groups (the effect size behind Fisher's test) with Newcombe's
   hybrid score interval (his method 10: each rate's Wilson interval, combined), which keeps its
@@ -40,7 +43,8 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from fractions import Fraction
 
 import numpy as np
 import scipy.integrate
@@ -57,10 +61,10 @@ MAX_SEEDS = 100
 """`seeds_needed` looks no further than this many seeds per group."""
 CONFIDENCE = 0.95
 PERMUTATIONS = 10_000
-"""Random permutations per permutation test (and per rank test) when there are more distinct splits of
-the seeds than this (15 against 15 seeds have 155 million): a p-value near 0.05 then has a standard
-error of 0.0022 (sqrt(0.05 x 0.95 / 10,000))."""
+"""Random splits per batch of a Monte Carlo p-value, the fallback for values off every grid (never the
+case for success rates or midranks, whose p-values are exact)."""
 PERMUTATION_SEED = 2024
+"""Seed of the Monte Carlo fallback's draws."""
 _RELATIVE_TOLERANCE = 1 + 1e-7
 """Tables whose probability equals the observed one up to rounding count as at least as extreme."""
 
@@ -169,46 +173,127 @@ def fisher_p(reached_a: int, seeds_a: int, reached_b: int, seeds_b: int) -> floa
     return float(scipy.stats.fisher_exact(table).pvalue)
 
 
+# --- exact permutation distributions -------------------------------------------------------------
+GRID_DENOMINATOR = 100_000
+"""Values whose fractions need a larger denominator than this are off the grid the exact tests use."""
+GRID_SUM = 250_000
+"""The exact tests count subsets by their integer score sum up to this size (memory: 8 bytes x seeds x it)."""
+MONTE_CARLO_LEVEL = 0.999
+"""Confidence of the interval a Monte Carlo p-value is drawn until, around it, no level lies."""
+MONTE_CARLO_MOST = 2_000_000
+"""Most random splits a Monte Carlo p-value draws."""
+
+
+def _integer_scores(values: np.ndarray) -> np.ndarray | None:
+    """`values` as non-negative integers on a common grid (shifted by the smallest and scaled by the least
+    common denominator of their fractions), or None when they are off any grid of `GRID_DENOMINATOR`."""
+    fractions = [Fraction(float(v)).limit_denominator(GRID_DENOMINATOR) for v in values]
+    if any(abs(float(f) - v) > 1e-12 * max(1.0, abs(v)) for f, v in zip(fractions, values)):
+        return None
+    scale, low = math.lcm(*(f.denominator for f in fractions)), min(fractions)
+    scores = [int((f - low) * scale) for f in fractions]
+    return np.array(scores, np.int64) if max(scores) * len(scores) <= GRID_SUM else None
+
+
+@functools.lru_cache(maxsize=1024)
+def _subset_sums(levels: tuple[int, ...], counts: tuple[int, ...], size: int) -> np.ndarray:
+    """ways[s]: how many of the `size`-item subsets of a pool (`counts[i]` items scoring `levels[i]`)
+    have score sum s. Dynamic programming over the distinct scores (the network algorithm's idea):
+    choosing j of the m items at a score adds C(m, j) ways; counts are floats, exact to 2^53 and
+    relatively exact to 1e-16 beyond, far below any level a p-value is compared with."""
+    total = sum(level * min(count, size) for level, count in zip(levels, counts)) + 1
+    ways = np.zeros((size + 1, total))
+    ways[0, 0] = 1.0
+    for level, count in zip(levels, counts):
+        grown = ways.copy()  # j = 0 of these items chosen
+        for j in range(1, min(count, size) + 1):
+            shift = j * level
+            if shift >= total:
+                break
+            grown[j:, shift:] += math.comb(count, j) * ways[:size + 1 - j, :total - shift]
+        ways = grown
+    return ways[size]
+
+
+def _exact_sum_p(scores: np.ndarray, size: int) -> float:
+    """Two-sided p of the sum of the first `size` of `scores` over every split of them into `size` and the
+    rest: twice the smaller tail, capped at 1 (scipy's `permutation_test` definition)."""
+    levels, counts = np.unique(scores, return_counts=True)
+    ways = _subset_sums(tuple(int(v) for v in levels), tuple(int(c) for c in counts), size)
+    observed = int(scores[:size].sum())
+    splits = ways.sum()
+    less, greater = ways[:observed + 1].sum() / splits, ways[observed:].sum() / splits
+    return float(min(1.0, 2 * min(less, greater)))
+
+
+def _monte_carlo_sum_p(values: np.ndarray, size: int, seed: int, levels: Sequence[float]) -> float:
+    """Two-sided p of the sum of the first `size` of `values` from random splits, drawn in batches of
+    `PERMUTATIONS` until the `MONTE_CARLO_LEVEL` Clopper-Pearson interval of each tail leaves every level in
+    `levels` (halved, as the p doubles the smaller tail) on one side, or `MONTE_CARLO_MOST` are drawn."""
+    rng = np.random.default_rng(seed)
+    observed = values[:size].sum()
+    tolerance = 1e-12 * max(1.0, abs(observed))
+    drawn = less = greater = 0
+    while drawn < MONTE_CARLO_MOST:
+        sums = rng.permuted(np.tile(values, (PERMUTATIONS, 1)), axis=1)[:, :size].sum(axis=1)
+        drawn, less, greater = (drawn + PERMUTATIONS, less + int((sums <= observed + tolerance).sum()),
+                                greater + int((sums >= observed - tolerance).sum()))
+        tail = min(less, greater)
+        interval = scipy.stats.binomtest(tail, drawn).proportion_ci(MONTE_CARLO_LEVEL, method="exact")
+        if not any(interval.low <= level / 2 <= interval.high for level in levels):
+            break
+    return float(min(1.0, 2 * min(less, greater) / drawn))
+
+
+def permutation_sum_p(a: np.ndarray, b: np.ndarray, seed: int = PERMUTATION_SEED,
+                      levels: Sequence[float] = (ALPHA,)) -> float:
+    """Two-sided permutation p-value of A's sum among the pooled values (for fixed totals, the difference
+    of the means and the rank sum are monotone in it): exact, by counting every split, when the values
+    lie on a grid (success rates of finitely many episodes, midranks); otherwise by Monte Carlo, drawn
+    until no level of `levels` lies inside the p's 99.9% interval (`_monte_carlo_sum_p`)."""
+    pooled = np.concatenate([a, b]).astype(float)
+    scores = _integer_scores(pooled)
+    if scores is not None:
+        return _exact_sum_p(scores, len(a))
+    return _monte_carlo_sum_p(pooled, len(a), seed, levels)
+
+
 def _never_last(steps: np.ndarray, ceiling: float) -> np.ndarray:
     """Steps with `inf` (never reached) replaced by `ceiling`, above every finite step: all tied last."""
     return np.where(np.isfinite(steps), steps, ceiling)
 
 
-def rank_p(steps_a: Sequence[float], steps_b: Sequence[float], permutations: int = PERMUTATIONS,
-           seed: int = PERMUTATION_SEED) -> float:
-    """Two-sided Mann-Whitney U test on steps to threshold, `inf` (never) tied in last place, with
-    the p-value from the permutation distribution of U. 1.0 when all the values are equal; NaN (no
-    test) when a group has a single seed, which no split of up to 38 seeds could show at 0.05."""
+def _ceiling(*steps: np.ndarray) -> float:
+    """A step after every finite one of `steps`: where "never" ranks."""
+    finite = np.concatenate(steps)
+    finite = finite[np.isfinite(finite)]
+    return finite.max() + 1 if len(finite) else 0.0
+
+
+def rank_p(steps_a: Sequence[float], steps_b: Sequence[float], seed: int = PERMUTATION_SEED) -> float:
+    """Two-sided Mann-Whitney U test on steps to threshold, `inf` (never) tied in last place, with the
+    exact p-value of the permutation distribution of U (the midrank sum of A over every split of the
+    seeds, `permutation_sum_p`), so the many ties need no normal approximation and no random draw. 1.0
+    when all the values are equal; NaN (no test) when a group has a single seed."""
     a, b = np.asarray(steps_a, float), np.asarray(steps_b, float)
     if min(len(a), len(b)) < 2:
         return math.nan
     both = np.concatenate([a, b])
     if np.all(both == both[0]):  # nothing to rank (every seed never, or all at one step)
         return 1.0
-    finite = both[np.isfinite(both)]
-    ceiling = finite.max() + 1 if len(finite) else 0.0
-    method = scipy.stats.PermutationMethod(n_resamples=permutations, rng=np.random.default_rng(seed))
-    return float(scipy.stats.mannwhitneyu(_never_last(a, ceiling), _never_last(b, ceiling), method=method).pvalue)
+    ranks = scipy.stats.rankdata(_never_last(both, _ceiling(a, b)))
+    return permutation_sum_p(ranks[:len(a)], ranks[len(a):], seed)
 
 
-def _mean_difference(x, y, axis):
-    return np.mean(x, axis=axis) - np.mean(y, axis=axis)
-
-
-def permutation_p(a: Sequence[float], b: Sequence[float], permutations: int = PERMUTATIONS,
-                  seed: int = PERMUTATION_SEED) -> float:
-    """Two-sided permutation test of the difference of the means of `a` and `b` (scipy's
-    permutation_test: every split of the pooled values when there are at most `permutations` of
-    them, else `permutations` random ones from a generator seeded with `seed`). NaN when a group has a
-    single seed, as `rank_p`."""
+def permutation_p(a: Sequence[float], b: Sequence[float], seed: int = PERMUTATION_SEED) -> float:
+    """Two-sided permutation test of the difference of the means of `a` and `b` (`permutation_sum_p`:
+    exact for values on a grid, as success rates are). NaN when a group has a single seed, as `rank_p`."""
     a, b = np.asarray(a, float), np.asarray(b, float)
     if min(len(a), len(b)) < 2:
         return math.nan
     if np.all(np.concatenate([a, b]) == a[0]):
         return 1.0
-    result = scipy.stats.permutation_test((a, b), _mean_difference, vectorized=True, n_resamples=permutations,
-                                          rng=np.random.default_rng(seed))
-    return float(result.pvalue)
+    return permutation_sum_p(a, b, seed)
 
 
 def holm(p_values: Sequence[float]) -> np.ndarray:
@@ -323,14 +408,13 @@ class Comparison:
     than `MAX_SEEDS`."""
 
 
-def compare(a: SeedOutcomes, b: SeedOutcomes, permutations: int = PERMUTATIONS,
-            seed: int = PERMUTATION_SEED) -> Comparison:
+def compare(a: SeedOutcomes, b: SeedOutcomes, seed: int = PERMUTATION_SEED) -> Comparison:
     """Every test of `TESTS` on A against B, the effect sizes and the power at the observed reach rates."""
     reach_a, reach_b = a.reach, b.reach
     p = {"reach": fisher_p(reach_a.reached, reach_a.seeds, reach_b.reached, reach_b.seeds),
-         "steps": rank_p(a.first_reach, b.first_reach, permutations, seed),
-         "final": permutation_p(a.final, b.final, permutations, seed),
-         "late": permutation_p(a.late, b.late, permutations, seed)}
+         "steps": rank_p(a.first_reach, b.first_reach, seed),
+         "final": permutation_p(a.final, b.final, seed),
+         "late": permutation_p(a.late, b.late, seed)}
     finite = np.concatenate([a.first_reach, b.first_reach])
     ceiling = finite[np.isfinite(finite)].max() + 1 if np.isfinite(finite).any() else 0.0
     sooner = probability_of_improvement(-_never_last(a.first_reach, ceiling), -_never_last(b.first_reach, ceiling))
@@ -347,8 +431,7 @@ def holm_by_test(comparisons: Sequence[Comparison]) -> list[dict[str, float]]:
 
 def decision(comparison: Comparison, adjusted: dict[str, float], name_a: str, name_b: str,
              alpha: float = ALPHA) -> str:
-    """What the tests that reject at `alpha` after Holm's correction say, or "not enough seeds to
-    decide" when none does."""
+    """What the tests that reject at `alpha` after Holm's correction say, or "undecided" when none does."""
     c = comparison
     better = {"reach": c.a.reach.rate > c.b.reach.rate, "steps": c.sooner > 0.5,
               "final": c.a.final.mean() > c.b.final.mean(), "late": c.a.late.mean() > c.b.late.mean()}
@@ -359,4 +442,128 @@ def decision(comparison: Comparison, adjusted: dict[str, float], name_a: str, na
         if adjusted[test] <= alpha:
             said.setdefault(name_a if better[test] else name_b, []).append(words[test])
     phrases = [f"{name} {' and '.join(filter(None, [', '.join(what[:-1]), what[-1]]))}" for name, what in said.items()]
-    return "; ".join(phrases) if phrases else "not enough seeds to decide"
+    return "; ".join(phrases) if phrases else "undecided"
+
+
+# --- effects and equivalence ---------------------------------------------------------------------
+EQUIVALENCE_MARGIN = 0.3
+"""*No difference found* needs each effect's interval inside +-this: every effect here is a difference of
+two proportions or of two success rates, on a scale from -1 to 1."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Effect:
+    """A's difference from B on a scale from -1 to 1 (`measure`), and its interval at any confidence."""
+
+    measure: str
+    estimate: float
+    interval: Callable[[float], tuple[float, float]]
+    """Confidence in (0, 1) -> (low, high)."""
+
+
+def _wilson(events: np.ndarray | int, seeds: int, confidence: float) -> tuple[np.ndarray, np.ndarray]:
+    """Wilson's score interval of a binomial rate (no continuity correction; scipy's "wilson"), for an
+    array of event counts at once."""
+    z = scipy.stats.norm.isf((1 - confidence) / 2)
+    rate = np.asarray(events, float) / seeds
+    centre = (rate + z * z / (2 * seeds)) / (1 + z * z / seeds)
+    half = z * np.sqrt(rate * (1 - rate) / seeds + z * z / (4 * seeds * seeds)) / (1 + z * z / seeds)
+    return centre - half, centre + half
+
+
+def _newcombe(events_a, seeds_a: int, events_b, seeds_b: int, confidence: float):
+    """Newcombe's hybrid score interval (method 10) of rate A - rate B, broadcast over event counts."""
+    rate_a, rate_b = np.asarray(events_a, float) / seeds_a, np.asarray(events_b, float) / seeds_b
+    (low_a, high_a), (low_b, high_b) = _wilson(events_a, seeds_a, confidence), _wilson(events_b, seeds_b, confidence)
+    difference = rate_a - rate_b
+    return (difference - np.hypot(rate_a - low_a, high_b - rate_b),
+            difference + np.hypot(high_a - rate_a, rate_b - low_b))
+
+
+def rate_effect(events_a: int, seeds_a: int, events_b: int, seeds_b: int) -> Effect:
+    """Rate A minus rate B with Newcombe's interval (`rate_difference` at any confidence)."""
+    rate_difference(events_a, seeds_a, events_b, seeds_b)  # refuses counts that cannot be
+    return Effect("rate difference", events_a / seeds_a - events_b / seeds_b,
+                  lambda c: tuple(float(v) for v in _newcombe(events_a, seeds_a, events_b, seeds_b, c)))
+
+
+def _t_effect(measure: str, estimate: float, error: float, freedom: float) -> Effect:
+    """An effect whose interval is estimate +- t(freedom) x error, clipped to [-1, 1]; a point when the
+    error is 0 (every seed of each group alike)."""
+    def interval(confidence: float) -> tuple[float, float]:
+        half = 0.0 if error == 0 else math.inf if math.isinf(error) else error * scipy.stats.t.isf((1 - confidence) / 2, freedom)
+        return max(-1.0, estimate - half), min(1.0, estimate + half)
+
+    return Effect(measure, estimate, interval)
+
+
+SOONER = "Cliff's delta of steps to 0.8 (A sooner)"
+
+
+def sooner_effect(steps_a: Sequence[float], steps_b: Sequence[float]) -> Effect:
+    """Cliff's delta of the steps to threshold, P(A sooner) - P(B sooner) for a seed of each group
+    (never tied last; the rate difference when every seed that gets there does so at one step), with
+    Brunner and Munzel's interval: their rank estimate of the variance and Welch-Satterthwaite degrees of
+    freedom (the statistic of scipy's `brunnermunzel`)."""
+    a, b = np.asarray(steps_a, float), np.asarray(steps_b, float)
+    ceiling = _ceiling(a, b)
+    a, b = _never_last(a, ceiling), _never_last(b, ceiling)
+    n_a, n_b = len(a), len(b)
+    ranks = scipy.stats.rankdata(np.concatenate([a, b]))
+    if min(n_a, n_b) < 2:  # no spread to estimate: the interval is the whole scale
+        return _t_effect(SOONER, 2 * (ranks[n_a:].mean() - (n_b + 1) / 2) / n_a - 1, math.inf, 1)
+    spread = [((ranks[part] - scipy.stats.rankdata(x) - ranks[part].mean() + (len(x) + 1) / 2) ** 2).sum() / (len(x) - 1)
+              for part, x in ((slice(None, n_a), a), (slice(n_a, None), b))]
+    sooner = (ranks[n_a:].mean() - (n_b + 1) / 2) / n_a  # P(A < B) + P(A = B) / 2
+    pooled = n_a * spread[0] + n_b * spread[1]
+    error = 2 * math.sqrt(pooled) / (n_a * n_b)
+    freedom = pooled ** 2 / ((n_a * spread[0]) ** 2 / (n_a - 1) + (n_b * spread[1]) ** 2 / (n_b - 1)) if pooled else math.inf
+    return _t_effect(SOONER, 2 * sooner - 1, error, freedom)
+
+
+def mean_effect(a: Sequence[float], b: Sequence[float]) -> Effect:
+    """Mean of A minus mean of B with Welch's interval."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    if min(len(a), len(b)) < 2:  # no spread to estimate: the interval is the whole scale
+        return _t_effect("difference in mean", float(a.mean() - b.mean()), math.inf, 1)
+    var_a, var_b = a.var(ddof=1) / len(a), b.var(ddof=1) / len(b)
+    pooled = var_a + var_b
+    freedom = pooled ** 2 / (var_a ** 2 / (len(a) - 1) + var_b ** 2 / (len(b) - 1)) if pooled else math.inf
+    return _t_effect("difference in mean", float(a.mean() - b.mean()), math.sqrt(pooled), freedom)
+
+
+def equivalence_p(effect: Effect, margin: float = EQUIVALENCE_MARGIN) -> float:
+    """p-value of the two one-sided tests (TOST) that the effect lies within +-`margin`: the smallest
+    level alpha at which the effect's 1 - 2 alpha interval lies strictly inside the margin (1 when the
+    estimate itself does not)."""
+    if not -margin < effect.estimate < margin:
+        return 1.0
+
+    def overhang(confidence: float) -> float:
+        low, high = effect.interval(confidence)
+        return max(-margin - low, high - margin)
+
+    least = 1e-12
+    if overhang(least) >= 0:  # an interval of unknown width (one seed)
+        return 1.0
+    if overhang(1 - least) < 0:
+        return least / 2
+    return float((1 - scipy.optimize.brentq(overhang, least, 1 - least, xtol=1e-14)) / 2)
+
+
+@functools.cache
+def equivalence_power(rate: float, seeds: int, alpha: float, margin: float = EQUIVALENCE_MARGIN) -> float:
+    """Probability that the rate difference's Newcombe interval at 1 - 2 `alpha` lies inside +-`margin`
+    (TOST rejects) when both groups' true rate is `rate`, `seeds` each: the binomial probabilities of every
+    outcome table whose interval does, summed."""
+    events = np.arange(seeds + 1)
+    low, high = _newcombe(events[:, None], seeds, events[None, :], seeds, 1 - 2 * alpha)
+    chance = np.outer(*(2 * [scipy.stats.binom.pmf(events, seeds, rate)]))
+    return float(chance[(low > -margin) & (high < margin)].sum())
+
+
+def seeds_for_equivalence(rate: float, alpha: float, target: float = POWER, margin: float = EQUIVALENCE_MARGIN,
+                          most: int = MAX_SEEDS) -> int | None:
+    """The fewest seeds per group with which TOST on the rate difference at `alpha` shows equivalence within
+    +-`margin` with probability `target` when the two true rates are both `rate`; None beyond `most`."""
+    return next((n for n in range(2, most + 1) if equivalence_power(rate, n, alpha, margin) >= target), None)

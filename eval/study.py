@@ -18,8 +18,8 @@ the last evaluation step both groups have):
 
 The claim "A is ahead of B" is settled by the claims' rule (`claims.settle`): A ahead when a test
 rejects with A ahead and none with B ahead, B ahead the other way round; when no test rejects, *no
-difference found* if Fisher's test has at least 80% power to detect a difference of 0.3 in the rate
-with these seeds, else *not enough seeds to decide* with the seeds per group that would give 80%. The
+difference found* where the equivalence tests bound both effects within +-0.3 at the study's level, else
+*undecided* with the seeds per group that would decide it at that level. The
 p-values of one question on one task form one Holm family (eight comparisons, 16 p-values, for the
 first question; two and four for the second); tasks are separate questions. The family is the whole
 question even while some of its groups are still training: a comparison not made yet counts its p-values
@@ -36,7 +36,8 @@ chance that either look rejects a true tie is about 0.086 (for normally distribu
 Given the two looks' seeds per group (`looks`), each comparison a test decides at 0.05 is also settled
 at `statistics.two_look_level(*looks)`, Pocock's level for each of two looks that keeps both together
 at 0.05 (0.0284 for 20 and 49 seeds); one that does not hold there reads *A ahead at 0.05 only*, and
-a seed extension trains its groups on too.
+a seed extension trains its groups on too. A comparison no test decides is read at that level only:
+its equivalence tests, and the seeds that would decide it.
 
 Groups are each method's default configuration with 0.5K demo transitions (`claims.pick`); a pair
 whose groups are not both present is reported as not run.
@@ -50,8 +51,8 @@ import math
 
 from lava_bridge_mj.eval import statistics as stats
 from lava_bridge_mj.eval.aggregate import Group
-from lava_bridge_mj.eval.claims import (CONTRADICTED, NOT_RUN, SUPPORTED, UNDECIDED, Part, pick, reach_comparison,
-                                        robust_comparison, settle)
+from lava_bridge_mj.eval.claims import (CONTRADICTED, NOT_RUN, SUPPORTED, TESTS_PER_COMPARISON, UNDECIDED, Part, pick,
+                                        reach_comparison, robust_comparison, settle)
 
 SAFETY = ("auxss", "omega_ss")
 """Start distributions derived from how safe a demo state is to start from."""
@@ -67,8 +68,6 @@ QUESTIONS = (
 """Each question's short name, its text and the (A, B) pairs that answer it, A the side the question
 asks about."""
 ASPECTS = (("learns faster", reach_comparison), ("more robust", robust_comparison))
-TESTS_PER_COMPARISON = 2
-"""Each aspect's comparison makes two tests (a count test and a rank or permutation test)."""
 NO_COMMON_SEEDS = "no seed in common"
 AT_ONE_LOOK_ONLY = f"at {stats.ALPHA:g} only"
 """Appended to a verdict that rejects at 0.05 but not at the two-look level."""
@@ -103,12 +102,19 @@ class Answer:
                 and self.two_looks.verdict not in (SUPPORTED, CONTRADICTED))
 
     @property
+    def read(self) -> Part | None:
+        """The part the verdict stands on: a difference a test finds at 0.05 (with a note where it does not
+        hold at the two-look level); otherwise the reading at the study's level, the two-look one where
+        the study has two looks, which is what bounds a *no difference found* and sizes an *undecided*."""
+        return self.part if self.ahead or self.two_looks is None else self.two_looks
+
+    @property
     def verdict(self) -> str:
-        """Who is ahead, or why neither is: the findings' verdict read as an answer."""
+        """Who is ahead, or why neither is: the claims' verdict read as an answer."""
         if self.part is None:
             return self.absent
         if not self.ahead:
-            return self.part.verdict
+            return self.read.verdict
         return f"{self.ahead[0]} ahead" + (f" {AT_ONE_LOOK_ONLY}" if self.at_one_look_only else "")
 
 
@@ -139,10 +145,10 @@ class Question:
 
     @property
     def seeds_to_decide(self) -> str:
-        """The seeds per group that would give Fisher's test 80% power on the comparisons short of it (the
-        power column of each *not enough seeds to decide*), as a range: '21-48'; '-' when none is short.
+        """The seeds per group that would decide the *undecided* comparisons at the question's levels
+        (`claims.seeds_to_decide`), as a range: '21 to 48'; '-' when none is undecided.
         What a seed extension of this task needs, the most demanding comparison setting it."""
-        needed = [a.part.seeds_needed for a in self.answers if a.part is not None and a.part.verdict == UNDECIDED]
+        needed = [a.read.seeds_needed for a in self.answers if a.part is not None and a.verdict == UNDECIDED]
         if not needed:
             return "-"
         shown = [f"> {stats.MAX_SEEDS}" if n is None else str(n)
@@ -175,7 +181,7 @@ def answer_questions(groups: list[Group], looks: tuple[int, int] | None = None) 
         if all(absent == NOT_RUN for *_, absent in drafts):
             continue
         # one Holm family per question, the comparisons not made counted in it
-        untested = TESTS_PER_COMPARISON * (len(drafts) - len(pending))
+        untested = len(drafts) - len(pending)
         settled = iter(settle(pending, untested=untested))
         strict = iter(settle(pending, untested=untested, alpha=two_look_alpha) if looks is not None
                       else [None] * len(pending))

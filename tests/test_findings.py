@@ -29,37 +29,42 @@ def settle_one(a, b, matches=False):
 
 def test_a_clear_win_is_supported_and_a_reversed_one_contradicted(tmp_path):
     # 10 of 10 seeds reach 0.8 at step 2,000 against none: Fisher's p = 2 / C(20, 10) = 1.0825e-05, Holm's
-    # smallest of two x 2; the rank test's p comes from 10,000 random splits (C(20, 10) is more), of which
-    # none is as extreme: scipy's (0 + 1) / (10,000 + 1), two-sided 0.0002
+    # smallest of two x 2; the rank test's exact p is the same (2 of the C(20, 10) splits are as extreme), Holm
+    # raises it to the first's
     a, b = two_groups(tmp_path, {s: [0.0, 1.0] for s in range(10)}, {s: [0.0, 0.0] for s in range(10)})
     assert 2 / math.comb(20, 10) == pytest.approx(1.0825e-05, rel=1e-4)
     part = settle_one(a, b)
     assert part.verdict == claims.SUPPORTED and part.power == ""
     assert part.tests == ("Fisher's test on reach counts p = 1.08e-05 (Holm 2.17e-05); "
-                          "rank test on steps to 0.8 p = 0.0002 (Holm 0.0002)")
+                          "rank test on steps to 0.8 p = 1.08e-05 (Holm 2.17e-05)")
     assert "reached 0.8 10/10 [0.69, 1.00] against 0/10 [0.00, 0.31], P(A sooner) = 1.00" in part.measured
     assert settle_one(b, a).verdict == claims.CONTRADICTED
 
 
-def test_an_effect_at_5_against_5_seeds_is_not_enough_seeds_to_decide(tmp_path):
+def test_an_effect_at_5_against_5_seeds_is_undecided(tmp_path):
     # 4 of 5 against 1 of 5: Fisher's p = 0.206 (scipy), no rejection; pooled rate 0.5, so the claimed
-    # effect is 0.65 against 0.35, which 5 seeds detect with power 0.086 and 49 seeds per group with 80%
+    # effect is 0.65 against 0.35, which Fisher's test at 0.05 over the comparison's two tests (0.025)
+    # detects with 80% power at 56 seeds per group; bounding a difference at 0.5 within +-0.3 at 0.05 takes 44
     a, b = two_groups(tmp_path, {0: [0, 1], 1: [0, 1], 2: [0, 1], 3: [0, 1], 4: [0, 0]},
                       {0: [0, 1], 1: [0, 0], 2: [0, 0], 3: [0, 0], 4: [0, 0]})
     part = settle_one(a, b)
     assert part.verdict == claims.UNDECIDED
     assert "Fisher's test on reach counts p = 0.206" in part.tests
-    assert stats.seeds_needed(0.65, 0.35) == 49 and stats.power(0.65, 0.35, 5, 5) == pytest.approx(0.0865, abs=1e-4)
-    assert part.power == "power 0.09 to detect 0.65 against 0.35; 49 seeds per group give 80%"
+    assert stats.seeds_needed(0.65, 0.35, alpha=0.025) == 56 and stats.seeds_for_equivalence(0.5, 0.05) == 44
+    assert part.power == ("power 0.01 to detect 0.65 against 0.35 at 0.025; 80% power needs 56 seeds per group for "
+                          "that and 44 to bound a difference at 0.50 within +-0.3 at 0.05")
+    assert part.seeds_needed == 56
 
 
 def test_no_difference_with_enough_seeds_is_said_so_and_supports_a_claim_that_they_match(tmp_path):
-    # 25 of 25 each at the same step: no test rejects; pooled rate 1, so 1.0 against 0.7, detected with
-    # power 0.807 by 25 seeds per group (>= 80%)
+    # 25 of 25 each at the same step: no test rejects; Newcombe's interval of the rate difference at 90%
+    # (TOST at 0.05) is -+(1 - Wilson's lower bound of 25/25), inside +-0.3, and Cliff's delta is 0 with no spread
     a, b = two_groups(tmp_path, {s: [0.0, 1.0] for s in range(25)}, {s: [0.0, 1.0] for s in range(25)})
-    assert stats.power(1.0, 0.7, 25, 25) == pytest.approx(0.8065, abs=1e-4)
+    z = 1.6448536269514722
+    assert 1 - 1 / (1 + z * z / 25) == pytest.approx(0.0977, abs=1e-4)
     part = settle_one(a, b)
-    assert part.verdict == claims.NO_DIFFERENCE and part.power.startswith("power 0.81 to detect 1.00 against 0.70")
+    assert part.verdict == claims.NO_DIFFERENCE and part.power == "" and part.seeds_needed is None
+    assert part.equivalence.startswith("within +-0.3 at 90.00%: rate difference +0.00 [-0.10, +0.10]")
     assert settle_one(a, b, matches=True).verdict == claims.SUPPORTED
 
 

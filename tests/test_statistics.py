@@ -120,18 +120,95 @@ def test_rank_test_ties_never_last_and_matches_every_split():
     assert math.isnan(stats.rank_p([1000], [2000, 3000]))  # one seed: no test (scipy needs two)
 
 
-def test_permutation_test_by_hand_reproducible_and_close_to_exact():
+def _brute_force_sum_p(a, b):
+    """Twice the smaller tail of A's sum over every split of the pooled values: scipy's two-sided p."""
+    pooled = np.concatenate([a, b])
+    sums = np.array([pooled[list(s)].sum() for s in itertools.combinations(range(len(pooled)), len(a))])
+    observed = np.sum(a)
+    return min(1.0, 2 * min(np.mean(sums <= observed + 1e-9), np.mean(sums >= observed - 1e-9)))
+
+
+def test_permutation_test_by_hand_and_exact_on_every_split():
     # three 1s against three 0s: 2 of the C(6, 3) = 20 splits give a difference as large
     assert stats.permutation_p([1, 1, 1], [0, 0, 0]) == pytest.approx(0.1)
     assert stats.permutation_p([0.5, 0.5], [0.5, 0.5, 0.5]) == 1.0
     assert math.isnan(stats.permutation_p([1.0], [0.0, 0.0]))
     rng = np.random.default_rng(0)
-    a, b = rng.uniform(0.3, 1, 8), rng.uniform(0, 0.8, 8)  # C(16, 8) = 12,870 splits
-    exact = stats.permutation_p(a, b, permutations=20_000)
-    sampled = stats.permutation_p(a, b, permutations=2_000, seed=5)
-    assert sampled == stats.permutation_p(a, b, permutations=2_000, seed=5)
-    assert sampled != stats.permutation_p(a, b, permutations=2_000, seed=6)
-    assert abs(sampled - exact) < 0.03 and 0.001 < exact < 0.5
+    for _ in range(10):  # success rates of 20 episodes averaged over 3 evaluations: a grid of 1/60
+        a, b = rng.integers(0, 61, 7) / 60, rng.integers(0, 61, 6) / 60
+        assert stats.permutation_p(a, b) == pytest.approx(_brute_force_sum_p(a, b), rel=1e-12)
+
+
+def test_exact_tests_take_no_random_draw_and_match_scipy_on_49_against_49_seeds():
+    rng = np.random.default_rng(1)
+    a, b = rng.integers(0, 201, 49) / 200, rng.integers(0, 201, 49) / 200
+    a[:5] = 1.0  # shift A up
+    p = stats.permutation_p(a, b)
+    assert p == stats.permutation_p(a, b, seed=1) == stats.permutation_p(a, b, seed=2)  # the seed is never read
+    # scipy's Monte Carlo estimate of the same p lands within its own sampling error of the exact value
+    sampled = scipy.stats.permutation_test((a, b), lambda x, y, axis: x.mean(axis) - y.mean(axis), vectorized=True,
+                                           n_resamples=20_000, rng=np.random.default_rng(3)).pvalue
+    assert abs(sampled - p) < 4 * math.sqrt(p * (1 - p) / 20_000) + 1e-4
+    steps = np.where(rng.random(49) < 0.6, rng.integers(1, 31, 49) * 10_000.0, INF)
+    other = np.where(rng.random(49) < 0.3, rng.integers(1, 31, 49) * 10_000.0, INF)
+    assert stats.rank_p(steps, other) == stats.rank_p(steps, other, seed=7)
+    ceiling = 1e9
+    sampled = scipy.stats.mannwhitneyu(np.where(np.isinf(steps), ceiling, steps), np.where(np.isinf(other), ceiling, other),
+                                       method=scipy.stats.PermutationMethod(n_resamples=20_000,
+                                                                            rng=np.random.default_rng(4))).pvalue
+    exact = stats.rank_p(steps, other)
+    assert abs(sampled - exact) < 4 * math.sqrt(exact * (1 - exact) / 20_000) + 1e-4
+
+
+def test_values_off_every_grid_fall_back_to_draws_that_leave_the_level_on_one_side():
+    rng = np.random.default_rng(0)
+    a, b = rng.uniform(0.3, 1, 8), rng.uniform(0, 0.8, 8)  # C(16, 8) = 12,870 splits, irrational-looking values
+    assert stats._integer_scores(np.concatenate([a, b])) is None
+    exact = _brute_force_sum_p(a, b)
+    sampled = [stats.permutation_p(a, b, seed=s) for s in range(5)]
+    assert all(abs(p - exact) < 0.02 for p in sampled)
+    # every seed's p lands on the same side of 0.05, as the exact p does
+    assert len({p <= 0.05 for p in sampled + [exact]}) == 1
+
+
+def test_effects_intervals_are_newcombes_brunner_munzels_and_welchs():
+    # Newcombe's interval at 95% is rate_difference's
+    effect = stats.rate_effect(28, 49, 17, 49)
+    difference = stats.rate_difference(28, 49, 17, 49)
+    assert effect.estimate == pytest.approx(difference.difference)
+    assert effect.interval(0.95) == pytest.approx((difference.low, difference.high), abs=1e-12)
+    # Brunner-Munzel: at confidence 1 - p the interval of Cliff's delta just touches 0 (p from scipy)
+    a, b = [10_000, 20_000, 20_000, 30_000, INF, INF], [20_000, 30_000, INF, INF, INF]
+    effect = stats.sooner_effect(a, b)
+    p = scipy.stats.brunnermunzel(np.where(np.isinf(a), 1e9, a), np.where(np.isinf(b), 1e9, b)).pvalue
+    assert effect.estimate > 0 and effect.interval(1 - p)[0] == pytest.approx(0, abs=1e-9)
+    # Cliff's delta by hand: of the 30 pairs A sooner in 17, B sooner in 6, 7 tied
+    assert effect.estimate == pytest.approx((17 - 6) / 30)
+    x, y = [0.1, 0.4, 0.5, 0.9], [0.0, 0.2, 0.2]
+    welch = scipy.stats.ttest_ind(x, y, equal_var=False).confidence_interval(0.9)
+    assert stats.mean_effect(x, y).interval(0.9) == pytest.approx((welch.low, welch.high))
+
+
+def test_equivalence_p_is_the_level_at_which_the_interval_touches_the_margin():
+    effect = stats.rate_effect(20, 49, 21, 49)
+    p = stats.equivalence_p(effect)
+    low, high = effect.interval(1 - 2 * p)
+    assert max(-0.3 - low, high - 0.3) == pytest.approx(0, abs=1e-9)
+    assert stats.equivalence_p(stats.rate_effect(28, 49, 17, 49)) > p  # further from 0, less equivalent
+    assert stats.equivalence_p(stats.rate_effect(20, 49, 5, 49)) == 1.0  # estimate outside the margin
+    assert stats.equivalence_p(stats.mean_effect([0.5, 0.5], [0.5, 0.5])) < 1e-11  # no spread: a point
+
+
+def test_equivalence_power_by_hand_on_two_seeds_and_seeds_for_equivalence():
+    # two seeds a group at a true rate of 0.5: only tables whose Newcombe interval at 90% lies inside +-0.9
+    rate, seeds, alpha, margin = 0.5, 2, 0.05, 0.9
+    events = np.arange(3)
+    low, high = stats._newcombe(events[:, None], 2, events[None, :], 2, 0.9)
+    chance = np.outer([0.25, 0.5, 0.25], [0.25, 0.5, 0.25])
+    assert stats.equivalence_power(rate, seeds, alpha, margin) == pytest.approx(chance[(low > -0.9) & (high < 0.9)].sum())
+    n = stats.seeds_for_equivalence(0.5, 0.01)
+    assert stats.equivalence_power(0.5, n, 0.01) >= 0.8 > stats.equivalence_power(0.5, n - 1, 0.01)
+    assert stats.seeds_for_equivalence(0.5, 0.001) > n  # a stricter level needs more seeds
 
 
 def test_probability_of_improvement_by_hand():
@@ -204,7 +281,7 @@ def test_report_writes_the_reach_counts_and_the_pairwise_tests(tmp_path):
     # not more often after the correction (0.143), but higher late
     assert auxss_uss[11].startswith("auxss (0.5K) ") and "is higher late in training" in auxss_uss[11]
     assert "more often" not in auxss_uss[11]
-    assert rows["auxss (0.5K)", "goaldist_ss (0.5K)"][11] == "not enough seeds to decide"
+    assert rows["auxss (0.5K)", "goaldist_ss (0.5K)"][11] == "undecided"
     assert "Holm-adjusted across the 3 pairs" in text
 
 

@@ -1,7 +1,7 @@
 """The study's questions (eval/study.py) on small hand-built groups whose tests are computed by hand:
-Fisher's p for all against none of n seeds is 2 / C(2n, n), the rank and permutation tests of ten
-seeds against ten come from 10,000 random splits (scipy: (0 + 1) / 10,001, two-sided 0.0002), and
-Holm's correction multiplies the k-th smallest of m p-values by m - k + 1."""
+Fisher's p for all against none of n seeds is 2 / C(2n, n), and so is the exact p of the rank and
+permutation tests (2 of the C(2n, n) splits put all the 1s on one side), and Holm's correction
+multiplies the k-th smallest of m p-values by m - k + 1."""
 
 import math
 
@@ -37,13 +37,13 @@ def test_a_clear_win_is_answered_with_holm_over_the_question_and_newcombes_inter
     faster, robust = [a for a in question.answers if a.part is not None]
     assert (faster.a, faster.b, faster.aspect, robust.aspect) == ("auxss", "uniform_ss", "learns faster", "more robust")
     assert faster.verdict == robust.verdict == "auxss ahead"
-    # the family is the whole question's 16 p-values: the two comparisons made give 1.08e-05 twice and
-    # 0.0002 twice, the six not run count 1 each; Holm: 1.08e-05 x 16 = 1.73e-04 (the second, x 15, is
-    # raised to it), 0.0002 x 14 = 0.0028 (the second, x 13, raised to it)
+    # the family is the whole question's 16 p-values: the two comparisons made give 1.08e-05 four times,
+    # the six not run count 1 each; Holm: 1.08e-05 x 16 = 1.73e-04 (the others, x 15, 14 and 13, are
+    # raised to it)
     assert faster.part.tests == ("Fisher's test on reach counts p = 1.08e-05 (Holm 0.000173); "
-                                 "rank test on steps to 0.8 p = 0.0002 (Holm 0.0028)")
+                                 "rank test on steps to 0.8 p = 1.08e-05 (Holm 0.000173)")
     assert robust.part.tests == ("Fisher's test on robust-seed counts p = 1.08e-05 (Holm 0.000173); "
-                                 "permutation test on late ood success p = 0.0002 (Holm 0.0028)")
+                                 "permutation test on late ood success p = 1.08e-05 (Holm 0.000173)")
     assert FISHER_ALL_AGAINST_NONE * 16 == pytest.approx(1.732e-04, rel=1e-3)
     # all against none: +1 with Newcombe's lower bound 1 - hypot(0.2775, 0.2775) = 0.61 (test_statistics)
     for answer in (faster, robust):
@@ -78,20 +78,21 @@ def test_the_reverse_curriculum_ahead_is_said_so_and_its_question_is_a_family_of
     assert reverse.answers[0].effect.difference == -1
     # two comparisons in the family, so Holm multiplies the smallest p by 4 as above, not by 6
     assert "(Holm 4.33e-05)" in reverse.answers[0].part.tests
-    # auxss and uniform_ss both fail: nothing rejects, and ten seeds have too little power at a pooled rate 0
+    # auxss and uniform_ss both fail: nothing rejects, and ten seeds bound no difference within +-0.3 (Newcombe's
+    # interval of 0/10 against 0/10 at 95% is +-0.28 and wider at the family's level): undecided
     [tie] = [a for a in safety_question(questions).answers if a.part and a.aspect == "learns faster"]
-    assert tie.verdict == "not enough seeds to decide" and tie.effect.difference == 0
-    assert tie.part.power.startswith("power ") and "seeds per group give 80%" in tie.part.power
+    assert tie.verdict == "undecided" and tie.effect.difference == 0
+    assert tie.part.power.startswith("power ") and "80% power needs" in tie.part.power
     assert alone.answers[0].part.tests != tie.part.tests
 
 
-def test_a_weak_effect_at_five_seeds_is_not_enough_seeds_to_decide_with_its_interval(tmp_path):
+def test_a_weak_effect_at_five_seeds_is_undecided_with_its_interval(tmp_path):
     # 4 of 5 against 1 of 5: Fisher's p = 0.206 (scipy), no rejection; the difference 0.6 has Newcombe's
     # interval from Wilson's intervals of 0.8 [0.376, 0.964] and 0.2 [0.036, 0.624]
     auxss = {s: [0.0, 1.0] if s < 4 else [0.0, 0.0] for s in range(5)}
     uniform = {s: [0.0, 1.0] if s < 1 else [0.0, 0.0] for s in range(5)}
     faster = safety_question(answers(tmp_path, {"auxss": auxss, "uniform_ss": uniform})).answers[0]
-    assert faster.verdict == "not enough seeds to decide"
+    assert faster.verdict == "undecided"
     assert faster.effect.difference == pytest.approx(0.6)
     assert faster.effect.low == pytest.approx(0.6 - math.hypot(0.8 - 0.3755, 0.6245 - 0.2), abs=2e-3)
     assert faster.effect.high == pytest.approx(0.6 + math.hypot(0.9638 - 0.8, 0.2 - 0.0362), abs=2e-3)
@@ -142,23 +143,47 @@ def test_the_overview_names_each_tasks_decisions_and_the_questions_not_run(tmp_p
     assert study_overview({"LavaBridge-v0": []}) == []
 
 
-def test_the_seeds_a_question_needs_span_its_undecided_comparisons_power_columns(tmp_path):
-    # AuxSS and U-SS solve every seed: tied, so Fisher's test is asked to detect 1.00 against 0.70 around
-    # the pooled rate 1, which 21 seeds per group do (the reports' power column); Omega-SS solves 5 of 10
-    # (Fisher p = 0.0325 against U-SS, far from rejecting after Holm over 16): pooled 0.75, so 0.90
-    # against 0.60. A decided comparison asks for nothing.
+def test_the_seeds_a_question_needs_span_its_undecided_comparisons_at_the_familys_levels(tmp_path):
+    # AuxSS and U-SS solve every seed: tied, so at 0.05 over the question's 16 p-values Fisher's test is asked to
+    # detect 1.00 against 0.70 around the pooled rate 1, and the equivalence test at 0.05 over its 8 comparisons
+    # to bound a difference at a rate of 1 within +-0.3; Omega-SS solves 5 of 10 (Fisher p = 0.0325 against
+    # U-SS, far from rejecting after Holm over 16): pooled 0.75, so 0.90 against 0.60. A decided comparison
+    # asks for nothing.
     half = {seed: [0.0, 1.0] if seed < 5 else [0.0, 0.0] for seed in range(10)}
     question = safety_question(answers(tmp_path, {"auxss": SOLVED, "uniform_ss": SOLVED, "omega_ss": half}))
     undecided = {(a.a, a.aspect): a.part.seeds_needed for a in question.answers if a.part is not None}
-    assert {a.verdict for a in question.answers if a.part is not None} == {"not enough seeds to decide"}
-    assert undecided[("auxss", "learns faster")] == undecided[("auxss", "more robust")] == 21
-    wider = study.stats.seeds_needed(0.9, 0.6)
-    assert undecided[("omega_ss", "learns faster")] == wider and wider > 21
-    assert question.seeds_to_decide == f"21 to {wider}"
-    assert study_overview({"LavaBridge-v0": [question]})[-2].endswith(f"| 21 to {wider} |")
+    assert {a.verdict for a in question.answers if a.part is not None} == {"undecided"}
+    tied = max(study.stats.seeds_needed(1.0, 0.7, alpha=0.05 / 16), study.stats.seeds_for_equivalence(1.0, 0.05 / 8))
+    assert undecided[("auxss", "learns faster")] == undecided[("auxss", "more robust")] == tied
+    wider = max(study.stats.seeds_needed(0.9, 0.6, alpha=0.05 / 16), study.stats.seeds_for_equivalence(0.75, 0.05 / 8))
+    assert undecided[("omega_ss", "learns faster")] == wider and wider > tied
+    assert question.seeds_to_decide == f"{tied} to {wider}"
+    assert study_overview({"LavaBridge-v0": [question]})[-2].endswith(f"| {tied} to {wider} |")
     # all decided: nothing to add
     decided = safety_question(answers(tmp_path / "decided", {"auxss": SOLVED, "uniform_ss": FAILED}))
     assert decided.seeds_to_decide == "-"
+
+
+def test_no_difference_found_needs_both_effects_inside_the_margin_at_the_level_read(tmp_path):
+    # 40 seeds a group, all reaching 0.8 at the same step: both effects are 0 with tight intervals, so the
+    # equivalence test decides *no difference found* at 0.05, and its intervals are shown beside it
+    solved = {seed: [0.0, 1.0] for seed in range(40)}
+    question = safety_question(answers(tmp_path, {"auxss": solved, "uniform_ss": solved}))
+    tie = question.answers[0]
+    assert tie.verdict == "no difference found" and tie.part.seeds_needed is None
+    assert tie.part.equivalence.startswith("within +-0.3 at ")
+    assert "rate difference +0.00 [" in tie.part.equivalence and "Cliff's delta" in tie.part.equivalence
+    # at the two-look level the family's Holm steps are stricter; 40 seeds still bound it (the interval is
+    # the Wilson interval of 40/40 against it: 1 - lower bound < 0.3 at 1 - 2 x 0.0284 / 8)
+    strict = safety_question(answers(tmp_path, {}, looks=(20, 49))).answers[0]
+    assert strict.verdict == "no difference found" and strict.read is strict.two_looks
+    # half of A's seeds reach 0.8 a step later: the rate difference is 0 but Cliff's delta is -0.5, outside the
+    # margin, so the comparison is not equivalent, though no test rejects it at the family's level
+    later = {seed: [0.0, 0.0, 1.0] if seed < 3 else [0.0, 1.0, 1.0] for seed in range(6)}
+    early = {seed: [0.0, 1.0, 1.0] for seed in range(6)}
+    apart = safety_question(answers(tmp_path / "apart", {"auxss": later, "uniform_ss": early})).answers[0]
+    assert apart.effect.difference == 0 and apart.verdict == "undecided"
+    assert "Cliff's delta of steps to 0.8 (A sooner) -0.50" in apart.part.equivalence
 
 
 def test_with_two_looks_a_verdict_that_rejects_at_005_only_says_so_and_a_clear_one_stands(tmp_path):
@@ -169,7 +194,7 @@ def test_with_two_looks_a_verdict_that_rejects_at_005_only_says_so_and_a_clear_o
     near = safety_question(answers(tmp_path / "near", {}, looks=(20, 49)))
     assert one_look.answers[0].verdict == "auxss ahead" and one_look.answers[0].two_looks is None
     assert near.answers[0].verdict == "auxss ahead at 0.05 only"
-    assert near.answers[0].two_looks.verdict == "not enough seeds to decide"
+    assert near.answers[0].two_looks.verdict == "undecided"
     assert near.decided[0].startswith("auxss ahead of uniform_ss: learns faster (at 0.05 only)")
     assert near.answers[0].part == one_look.answers[0].part  # the 0.05 reading is unchanged
     clear = safety_question(answers(tmp_path / "clear", {"auxss": SOLVED, "uniform_ss": FAILED}, looks=(20, 49)))
