@@ -5,10 +5,12 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+# NO_MKDOCS_2_WARNING: the Material theme's notice about MkDocs 2, printed on every build
+MKDOCS := NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs
 MESA_PACKAGES := libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 libosmesa6
 export MUJOCO_GL ?= egl
 
-.PHONY: run expert-video task-pictures test bench study study-extension report setup gl clean
+.PHONY: run expert-video task-pictures test docs bench study study-extension report setup gl browser clean
 
 # The main job: what the package is for, AuxSS against SAC from p0 on the same 5 seeds (80,000 steps, as
 # one sweep of two 5-seed jobs, one per core; 17 min on the idle 2-core machine, set-up included), then the report
@@ -32,10 +34,16 @@ expert-video: setup
 task-pictures: setup
 	$(BIN)/python -m lava_bridge_mj.pictures --out docs/tasks.png
 
-# Two pytest workers (pytest-xdist), one per core; --dist loadfile keeps each test file in one worker,
-# so the runs a file's fixtures train once are shared by its tests, as in a serial run.
-test: setup
+# The documentation site built with --strict first (a broken link, anchor or API reference fails it),
+# then two pytest workers (pytest-xdist), one per core; --dist loadfile keeps each test file in one
+# worker, so the runs a file's fixtures train once are shared by its tests, as in a serial run.
+test: setup browser
+	$(MKDOCS) build --strict
 	$(BIN)/python -m pytest -n 2 --dist loadfile
+
+# The documentation site (mkdocs.yml) into site/: open site/index.html, or `$(MKDOCS) serve` to browse it live.
+docs: setup
+	$(MKDOCS) build --strict
 
 bench: setup
 	$(BIN)/python bench/env_throughput.py
@@ -132,13 +140,24 @@ gl:
 	    fi; \
 	fi
 
+# Headless Chromium for the test that opens the built documentation site (tests/test_docs_site.py), when missing.
+browser:
+	@if ! command -v chromium >/dev/null && ! command -v chromium-browser >/dev/null; then \
+	    if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	        echo "installing Chromium for the documentation site's browser test"; \
+	        apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; \
+	    else \
+	        echo "warning: no chromium found; install chromium (Debian) for the documentation site's browser test, which is skipped without it"; \
+	    fi; \
+	fi
+
 $(STAMP): setup.cfg pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
 	# the CPU build of torch first: any other version would pull a multi-GB CUDA build
 	$(BIN)/pip install -q torch==2.13.0
-	$(BIN)/pip install -q -e '.[test,plots]'
+	$(BIN)/pip install -q -e '.[test,plots,docs]'
 	touch $(STAMP)
 
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) build site *.egg-info

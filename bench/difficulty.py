@@ -1,4 +1,4 @@
-"""How hard each Lava Bridge task is, in the paper's sense: the figures the README's tables record.
+"""How hard each Lava Bridge task is, in the paper's sense: the figures the tables of docs/environment.md record.
 
 Per task (`--env ID`, or every task of `lava_bridge_mj.TASKS` by default):
 - a uniformly random policy from p0: success rate (must stay below 1%) and how episodes end;

@@ -46,8 +46,9 @@ class LavaBridgeTask:
 
     Args:
         layout: the geometry and physics.
-        goal_reward, lava_reward, step_reward: the reward on reaching the goal, on touching lava and
-            otherwise; finite numbers (ValueError naming the reward otherwise).
+        goal_reward: the reward on reaching the goal, a finite number.
+        lava_reward: the reward on touching lava, a finite number.
+        step_reward: the reward otherwise, a finite number (ValueError naming the reward otherwise).
 
     Attributes: `layout`, `model` (the compiled MjModel), `frame_skip` (physics steps per env step),
     `dt` (seconds per env step), the three rewards, `start_distributions` (name -> distribution),

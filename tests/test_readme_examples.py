@@ -1,31 +1,54 @@
-"""The README's Python examples run as they stand and do what their text says."""
+"""The Python examples of the README and the documentation pages run as they stand and do what their text says."""
 
 import re
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+import lava_bridge_mj
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
-def example(heading: str) -> str:
-    """The first python code block under the README heading `heading`."""
-    section = README.read_text().split(f"\n{heading}\n", 1)[1]
+def example(page: str, heading: str) -> str:
+    """The first python code block under the heading line `heading` of the markdown file `page`."""
+    section = (ROOT / page).read_text().split(f"\n{heading}\n", 1)[1]
     return re.search(r"```python\n(.*?)```", section, re.S).group(1)
 
 
-def run_example(heading: str, cwd: Path) -> str:
+def run_example(page: str, heading: str, cwd: Path) -> str:
     script = cwd / "example.py"
-    script.write_text(example(heading))
+    script.write_text(example(page, heading))
     done = subprocess.run([sys.executable, str(script)], cwd=cwd, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
     return done.stdout
 
 
+def numbers(text: str) -> np.ndarray:
+    return np.array([float(x) for x in text.split()])
+
+
+def test_the_readmes_example_resets_to_a_state_starts_from_auxss_and_trains(tmp_path):
+    out = run_example("README.md", "## Use it from Python", tmp_path)
+    # the reset to a given state returns exactly that state
+    assert np.array_equal(numbers(re.search(r"^reset to \[(.*?)\]$", out, re.M | re.S)[1]), [-1.0, 0.0, 0.4, 0.0])
+    # the wrapper's reset starts from the demo state AuxSS drew, the one its info names
+    index, count, state = re.search(r"^reset to state (\d+) of (\d+): \[(.*?)\]$", out, re.M | re.S).groups()
+    candidates = lava_bridge_mj.load_demos(500)["observations"][::10]
+    assert int(count) == len(candidates) and 0 <= int(index) < len(candidates)
+    np.testing.assert_allclose(numbers(state), candidates[int(index)], atol=1e-6)
+    # and training wrote a run whose evaluations the example printed
+    printed = re.search(r"^success from p0 at each evaluation: \[(.*)\]$", out, re.M)[1]
+    rows = (tmp_path / "runs" / "readme" / "metrics.csv").read_text().splitlines()
+    assert [row.split(",")[0] for row in rows[1:]] == ["500", "1000"]
+    assert len(printed.split(",")) == 2 and all(0.0 <= float(p) <= 1.0 for p in printed.split(","))
+
+
 def test_the_python_api_example_trains_two_seeds_into_their_directories(tmp_path):
-    out = run_example("### Use it from Python", tmp_path)
+    out = run_example("docs/training.md", "## Use it from Python", tmp_path)
     steps = re.findall(r"seed (\d): step (\d+), success from p0 ([0-9.]+)", out)
     assert [(seed, step) for seed, step, _ in steps] == [("0", "2000"), ("1", "2000")]
     actions = re.findall(r"first action from p0: \[\s*(\S+)\s+(\S+)\s*\]", out)
@@ -38,7 +61,7 @@ def test_the_python_api_example_trains_two_seeds_into_their_directories(tmp_path
 
 def test_the_stable_baselines3_example_trains_through_auxss_start_states(tmp_path):
     pytest.importorskip("stable_baselines3", reason="stable-baselines3 is a test extra: pip install -e '.[test]'")
-    out = run_example("### Use the start strategies with Stable-Baselines3", tmp_path)
+    out = run_example("docs/start-strategies.md", "## Use the start strategies with Stable-Baselines3", tmp_path)
     most, least, uniform = map(float, re.search(
         r"most likely start ([0-9.]+), least likely ([0-9.]+) \(uniform: ([0-9.]+)\)", out).groups())
     assert uniform == pytest.approx(1 / 150, abs=1e-4)  # the benchmark's 150 candidate states

@@ -28,7 +28,7 @@ TINY = {"steps": 1500, "eval_every": 250, "eval_episodes": 2, "demo_subset": 20,
         "sac": {"hidden_sizes": [16, 16], "batch_size": 32, "buffer_size": 500, "learning_starts": 100}}
 KILL_AFTER_CHECKPOINTS = (1, 3)
 KILL_AFTER_SECONDS = (0.5, 4.0)  # before any checkpoint (likely), and at an arbitrary moment
-"""Kill-and-resume trials: the README counts them (4 SIGKILL + 1 SIGTERM + 1 SIGINT, and 1 SIGKILL of a batch).
+"""Kill-and-resume trials: docs/reliability.md counts them (4 SIGKILL + 1 SIGTERM + 1 SIGINT, and 1 SIGKILL of a batch).
 Each tuple is one run, interrupted at each moment in turn: the first by the run's own process, the next
 by the real process that resumed it."""
 

@@ -80,9 +80,9 @@ def test_results_md_and_the_readme_state_the_verdicts_the_committed_reports_give
     results = (ROOT / "docs/results.md").read_text()
     assert findings_verdicts(results, r"^\| (\d) \| [^|]+ \| \*\*([^*]+)\*\*") == expected, "docs/results.md table"
     assert findings_verdicts(results, r"^### (\d)\. .*: \*\*([^*]+)\*\*") == expected, "docs/results.md headings"
-    readme = (ROOT / "README.md").read_text()
+    findings = (ROOT / "docs/findings.md").read_text()
     verdicts = "|".join(map(re.escape, set(expected.values())))
-    assert findings_verdicts(readme, rf"^\| (\d) \| [^|]+ \| ({verdicts})\b") == expected, "README findings table"
+    assert findings_verdicts(findings, rf"^\| (\d) \| [^|]+ \| ({verdicts})\b") == expected, "docs/findings.md table"
 
 
 # one comparison of the study's questions: the pair, the aspect, the effect with its interval ("-" where the
@@ -123,10 +123,10 @@ def test_results_md_quotes_the_study_question_on_lavabridge_v0_as_the_report_giv
     quoted = section(results, "## The study's first question on LavaBridge-v0: do safety-derived starts beat "
                               "undirected ones?")
     assert len(report_rows) == 8 and re.findall(STUDY_ROW, quoted, re.MULTILINE) == report_rows
-    # the README's summary quotes the one interval that leaves little room on one side
+    # docs/findings.md's summary quotes the one interval that leaves little room on one side
     [quoted] = [effect for pair, aspect, effect, _ in report_rows
                 if (pair, aspect) == ("auxss against goaldist_ss", "learns faster")]
-    assert f"GoalDist-SS on reaching 0.8, {quoted}" in " ".join((ROOT / "README.md").read_text().split())
+    assert f"GoalDist-SS on reaching 0.8, {quoted}" in " ".join((ROOT / "docs/findings.md").read_text().split())
 
 
 def test_results_md_answers_the_study_per_task_as_the_study_report_gives_it():
@@ -143,10 +143,10 @@ def test_results_md_answers_the_study_per_task_as_the_study_report_gives_it():
     for task, text in answered.items():
         prose = "\n".join(line for line in text.splitlines() if not line.startswith("|"))
         assert_quoted_from(prose, report_parts(report_text)[task], f"docs/results.md on {task}")
-    # so is every number of the README's paragraph on the study
-    readme = (ROOT / "README.md").read_text()
-    paragraph = readme[readme.index("**The study on the task suite**"):]
-    assert_quoted_from(paragraph[:paragraph.index("\n\n")], report_text, "the README's study paragraph")
+    # so is every number of docs/findings.md's paragraph on the study
+    findings = (ROOT / "docs/findings.md").read_text()
+    paragraph = findings[findings.index("**The study on the task suite**"):]
+    assert_quoted_from(paragraph[:paragraph.index("\n\n")], report_text, "docs/findings.md's study paragraph")
 
 
 OVERVIEW_ROW = r"^\| (LavaBridge\w*-v0) \| (\d\. [^|]+) \| ([^|]+) \| ([^|]+) \| ([^|]+) \|$"
