@@ -4,6 +4,9 @@ Importing the package registers `LavaBridge-v0` and the other tasks of the suite
 gymnasium. Without importing it first, `gymnasium.make("lava_bridge_mj:LavaBridge-v0")` imports and
 registers them in one go.
 
+`ResetToState(env)` gives any MuJoCo-based Gymnasium env (Gymnasium's MuJoCo envs, Gymnasium-Robotics'
+PointMaze, OGBench's cube envs) exact resets to the states it reports (reset_to_state.py).
+
 Training from Python: `lava_bridge_mj.train(lava_bridge_mj.RunConfig(method="auxss"), "runs/auxss")`
 (eval/runner.py) returns the finished run; both load on first use, so importing the package for the
 env alone loads no torch.
@@ -21,6 +24,7 @@ from lava_bridge_mj.demos import load_demos  # noqa: E402
 from lava_bridge_mj.expert import ScriptedExpert  # noqa: E402
 from lava_bridge_mj.layout import Disc, Layout  # noqa: E402
 from lava_bridge_mj.lava_bridge import MAX_EPISODE_STEPS, LavaBridgeEnv  # noqa: E402
+from lava_bridge_mj.reset_to_state import ResetToState  # noqa: E402
 from lava_bridge_mj.starts import START_NAMES, start_distribution  # noqa: E402
 from lava_bridge_mj.task_physics import LavaBridgeTask  # noqa: E402
 from lava_bridge_mj.tasks import DEFAULT_ENV_ID, SUITE, TASK_DOCS, TASKS, task_layout  # noqa: E402
@@ -48,8 +52,8 @@ def register_envs() -> None:
 register_envs()
 
 __all__ = ["ENV_ID", "MAX_EPISODE_STEPS", "SUITE", "TASKS", "TASK_DOCS", "Disc", "Layout", "LavaBridgeEnv", "LavaBridgeTask",
-           "LavaBridgeVectorEnv", "RunConfig", "START_NAMES", "ScriptedExpert", "load_demos", "register_envs",
-           "start_distribution", "task_layout", "train"]
+           "LavaBridgeVectorEnv", "ResetToState", "RunConfig", "START_NAMES", "ScriptedExpert", "load_demos",
+           "register_envs", "start_distribution", "task_layout", "train"]
 
 
 def __getattr__(name: str):
