@@ -105,7 +105,8 @@ study-extension: setup
 # the start-strategy calibration on the tuning seeds (docs/calibration.md), and the task suite's screening
 # (at 100k, and the two crossings extended to the paper's 300k), and the study's finished runs (make study;
 # each task at the budget it was trained to, so no --budget), and the far start's reverse curriculum with and
-# without its shortened time limit beside AuxSS (results/study_ablations).
+# without its shortened time limit beside AuxSS (results/study_ablations). Then the generated parts of README.md and
+# docs/results.md are rewritten from the study report's answers.json (eval/doc_tables.py).
 report: setup
 	$(BIN)/lava-bridge-bench report results/protocol --budget 100000 --out docs/report
 	$(BIN)/lava-bridge-bench report results/protocol/auxss-d500 results/protocol/sac-d500 results/protocol/omega_ss-d500 \
@@ -126,6 +127,7 @@ report: setup
 	$(BIN)/lava-bridge-bench report results/study/LavaBridgeFarStart-v0/auxss-d500 \
 	    results/study/LavaBridgeFarStart-v0/reverse_ss-d500 results/study_ablations/LavaBridgeFarStart-v0 \
 	    --seeds $(STUDY_SEEDS) --all-pairs --out docs/report_reverse_limit
+	$(BIN)/python -m lava_bridge_mj.eval.doc_tables
 
 setup: gl $(STAMP)
 

@@ -39,6 +39,7 @@ groups of each figure and test, eval/report_figures.py draws, eval/report_tables
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import shutil
@@ -62,7 +63,7 @@ from lava_bridge_mj.eval.report_groups import START_STUDY, benchmark_groups, dem
 from lava_bridge_mj.eval.report_tables import (counted, findings_section, last_evaluation_table, late_table,
                                                pairwise_section, reach_table, runs_table, study_overview, study_section,
                                                threshold_table)
-from lava_bridge_mj.eval.study import Question, answer_questions
+from lava_bridge_mj.eval.study import Question, answer_questions, answers_record
 from lava_bridge_mj.eval.summary import CurriculumStall, curriculum_progress, curriculum_stall, read_start_weights
 from lava_bridge_mj.tasks import DEFAULT_ENV_ID, SUITE
 from lava_bridge_mj.eval.sweep import seed_list
@@ -153,6 +154,9 @@ def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dic
     # the study's questions are asked at its threshold only, once per task
     answers = {task: answer_questions([g for g in groups if g.task == task], looks) if threshold == THRESHOLD else []
                for task in tasks}
+    record = answers_record(answers, groups)
+    if record:
+        atomic_write_text(out / "answers.json", json.dumps(record, indent=1) + "\n")
     overview = study_overview(answers) if len(tasks) > 1 else []
     if overview:
         lines.extend(["", "## The study's answers, task by task", "", *overview])

@@ -191,3 +191,32 @@ def answer_questions(groups: list[Group], looks: tuple[int, int] | None = None) 
                    for a, b, aspect, item, absent in drafts]
         questions.append(Question(short, text, answers, looks))
     return questions
+
+
+def answers_record(answers: dict[str, list[Question]], groups: list[Group]) -> dict:
+    """The study's answers as plain data (the report writes it as answers.json, from which the README's and
+    docs/results.md's generated tables are made): per task, every comparison's verdict, effect and what
+    stands behind it, and the seeds of each start distribution's group."""
+    def comparison(question_number: int, answer: Answer) -> dict:
+        read = answer.read
+        return {"question": question_number, "a": answer.a, "b": answer.b, "aspect": answer.aspect,
+                "verdict": answer.verdict, "ahead": list(answer.ahead) if answer.ahead else None,
+                "at_one_look_only": answer.at_one_look_only,
+                "effect": [answer.effect.difference, answer.effect.low, answer.effect.high] if answer.effect else None,
+                "measured": read.measured if read else None, "tests": read.tests if read else None,
+                "equivalence": read.equivalence if read else None, "seeds_to_decide": read.power if read else None,
+                "seeds_needed": read.seeds_needed if read else None}
+
+    record = {}
+    for task, questions in answers.items():
+        if not questions:
+            continue
+        numbers = {text: number for number, (_, text, _) in enumerate(QUESTIONS, 1)}
+        record[task] = {
+            "looks": list(questions[0].looks) if questions[0].looks else None,
+            "questions": [{"number": numbers[q.text], "short": q.short, "text": q.text, "summary": q.summary,
+                           "decided": q.decided, "seeds_to_decide": q.seeds_to_decide} for q in questions],
+            "comparisons": [comparison(numbers[q.text], a) for q in questions for a in q.answers],
+            "seeds": {g.method: sorted(g.seeds) for g in groups if g.task == task and pick([g], g.method) is g},
+        }
+    return record
