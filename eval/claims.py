@@ -271,23 +271,29 @@ def claimed_rates(events_a: int, seeds_a: int, events_b: int, seeds_b: int) -> t
     return low + EFFECT, low
 
 
-def seeds_to_decide(counts: tuple[int, int, int, int], difference_level: float,
-                    equivalence_level: float) -> tuple[int | None, str]:
+def seeds_to_decide(pending: Pending, difference_level: float, equivalence_level: float) -> tuple[int | None, str]:
     """The seeds per group that would decide a comparison no test decides, at the levels the family is read
     at: enough for Fisher's test at `difference_level` to detect `EFFECT` around the pooled rate with
-    `POWER`, and for the equivalence test at `equivalence_level` to show the rates within the margin with
-    `POWER` if they are equal (the larger of the two; None beyond `stats.MAX_SEEDS`), and the two in words."""
+    `POWER`, and for the equivalence test at `equivalence_level` to bound each of the comparison's effects
+    within the margin with `POWER` if it is 0 (the rate difference's power exactly, at the pooled rate; the
+    other effect's from its error per seed); the largest of these (None beyond `stats.MAX_SEEDS`), and the
+    figures in words."""
+    counts = pending.counts
     high, low = claimed_rates(*counts)
     power = stats.power(high, low, counts[1], counts[3], alpha=difference_level)
     to_detect = stats.seeds_needed(high, low, alpha=difference_level)
     pooled = (counts[0] + counts[2]) / (counts[1] + counts[3])
-    to_bound = stats.seeds_for_equivalence(pooled, equivalence_level)
-    needed = None if to_detect is None or to_bound is None else max(to_detect, to_bound)
+    to_bound = [stats.seeds_for_equivalence(pooled, equivalence_level)] + [
+        stats.seeds_for_equivalence_of(e, equivalence_level) for e in pending.effects.values() if e.unit_error is not None]
+    needed = None if None in [to_detect, *to_bound] else max(to_detect, *to_bound)
+
     def seeds(n: int | None) -> str:
         return f"{n}" if n else f"more than {stats.MAX_SEEDS}"
+
     text = (f"power {power:.2f} to detect {high:.2f} against {low:.2f} at {difference_level:.3g}; {POWER:.0%} power "
-            f"needs {seeds(to_detect)} seeds per group for that and {seeds(to_bound)} to bound a difference at "
-            f"{pooled:.2f} within +-{stats.EQUIVALENCE_MARGIN:g} at {equivalence_level:.3g}")
+            f"needs {seeds(to_detect)} seeds per group for that and {' and '.join(seeds(n) for n in to_bound)} to "
+            f"bound the effects within +-{stats.EQUIVALENCE_MARGIN:g} at {equivalence_level:.3g} (a rate difference "
+            f"at {pooled:.2f}, then the other effect)")
     return needed, text
 
 
@@ -322,7 +328,7 @@ def settle(pending: list[Pending], untested: int = 0, alpha: float = ALPHA) -> l
                 rejected.add(c.a_ahead(name))
         equivalent = equivalence_adjusted[i] <= alpha
         confidence = 1 - 2 * step_level[i]
-        bounds = (f"within +-{stats.EQUIVALENCE_MARGIN:g} at {confidence:.2%}: "
+        bounds = (f"TOST against +-{stats.EQUIVALENCE_MARGIN:g} at {confidence:.2%}: "
                   + ", ".join(_interval_text(e, confidence) for e in c.effects.values())
                   + f"; TOST p = {equivalence[i]:.3g} (Holm {equivalence_adjusted[i]:.3g})")
         if c.matches:
@@ -334,7 +340,7 @@ def settle(pending: list[Pending], untested: int = 0, alpha: float = ALPHA) -> l
         else:
             verdict = NO_DIFFERENCE if equivalent and not rejected else UNDECIDED
         needed, power = (None, "") if rejected or equivalent else seeds_to_decide(
-            c.counts, alpha / (TESTS_PER_COMPARISON * comparisons), alpha / comparisons)
+            c, alpha / (TESTS_PER_COMPARISON * comparisons), alpha / comparisons)
         parts.append(Part(c.claim, c.measured, verdict, "; ".join(tests), power, needed,
                           "" if rejected else bounds))
     return parts

@@ -459,6 +459,10 @@ class Effect:
     estimate: float
     interval: Callable[[float], tuple[float, float]]
     """Confidence in (0, 1) -> (low, high)."""
+    unit_error: float | None = None
+    """For an effect with a normal-theory interval: its standard error times the square root of the seeds
+    per group (harmonic mean), the error it would have at one seed per group; what `seeds_for_equivalence`
+    scales. None for a rate difference, whose power is computed exactly."""
 
 
 def _wilson(events: np.ndarray | int, seeds: int, confidence: float) -> tuple[np.ndarray, np.ndarray]:
@@ -487,14 +491,18 @@ def rate_effect(events_a: int, seeds_a: int, events_b: int, seeds_b: int) -> Eff
                   lambda c: tuple(float(v) for v in _newcombe(events_a, seeds_a, events_b, seeds_b, c)))
 
 
-def _t_effect(measure: str, estimate: float, error: float, freedom: float) -> Effect:
+def _t_effect(measure: str, estimate: float, error: float, freedom: float, seeds: float) -> Effect:
     """An effect whose interval is estimate +- t(freedom) x error, clipped to [-1, 1]; a point when the
-    error is 0 (every seed of each group alike)."""
+    error is 0 (every seed of each group alike); `seeds` per group (harmonic mean) made the error."""
     def interval(confidence: float) -> tuple[float, float]:
         half = 0.0 if error == 0 else math.inf if math.isinf(error) else error * scipy.stats.t.isf((1 - confidence) / 2, freedom)
         return max(-1.0, estimate - half), min(1.0, estimate + half)
 
-    return Effect(measure, estimate, interval)
+    return Effect(measure, estimate, interval, error * math.sqrt(seeds))
+
+
+def _per_group(n_a: int, n_b: int) -> float:
+    return 2 / (1 / n_a + 1 / n_b)
 
 
 SOONER = "Cliff's delta of steps to 0.8 (A sooner)"
@@ -511,25 +519,26 @@ def sooner_effect(steps_a: Sequence[float], steps_b: Sequence[float]) -> Effect:
     n_a, n_b = len(a), len(b)
     ranks = scipy.stats.rankdata(np.concatenate([a, b]))
     if min(n_a, n_b) < 2:  # no spread to estimate: the interval is the whole scale
-        return _t_effect(SOONER, 2 * (ranks[n_a:].mean() - (n_b + 1) / 2) / n_a - 1, math.inf, 1)
+        return _t_effect(SOONER, 2 * (ranks[n_a:].mean() - (n_b + 1) / 2) / n_a - 1, math.inf, 1, _per_group(n_a, n_b))
     spread = [((ranks[part] - scipy.stats.rankdata(x) - ranks[part].mean() + (len(x) + 1) / 2) ** 2).sum() / (len(x) - 1)
               for part, x in ((slice(None, n_a), a), (slice(n_a, None), b))]
     sooner = (ranks[n_a:].mean() - (n_b + 1) / 2) / n_a  # P(A < B) + P(A = B) / 2
     pooled = n_a * spread[0] + n_b * spread[1]
     error = 2 * math.sqrt(pooled) / (n_a * n_b)
     freedom = pooled ** 2 / ((n_a * spread[0]) ** 2 / (n_a - 1) + (n_b * spread[1]) ** 2 / (n_b - 1)) if pooled else math.inf
-    return _t_effect(SOONER, 2 * sooner - 1, error, freedom)
+    return _t_effect(SOONER, 2 * sooner - 1, error, freedom, _per_group(n_a, n_b))
 
 
 def mean_effect(a: Sequence[float], b: Sequence[float]) -> Effect:
     """Mean of A minus mean of B with Welch's interval."""
     a, b = np.asarray(a, float), np.asarray(b, float)
     if min(len(a), len(b)) < 2:  # no spread to estimate: the interval is the whole scale
-        return _t_effect("difference in mean", float(a.mean() - b.mean()), math.inf, 1)
+        return _t_effect("difference in mean", float(a.mean() - b.mean()), math.inf, 1, _per_group(len(a), len(b)))
     var_a, var_b = a.var(ddof=1) / len(a), b.var(ddof=1) / len(b)
     pooled = var_a + var_b
     freedom = pooled ** 2 / (var_a ** 2 / (len(a) - 1) + var_b ** 2 / (len(b) - 1)) if pooled else math.inf
-    return _t_effect("difference in mean", float(a.mean() - b.mean()), math.sqrt(pooled), freedom)
+    return _t_effect("difference in mean", float(a.mean() - b.mean()), math.sqrt(pooled), freedom,
+                     _per_group(len(a), len(b)))
 
 
 def equivalence_p(effect: Effect, margin: float = EQUIVALENCE_MARGIN) -> float:
@@ -567,3 +576,16 @@ def seeds_for_equivalence(rate: float, alpha: float, target: float = POWER, marg
     """The fewest seeds per group with which TOST on the rate difference at `alpha` shows equivalence within
     +-`margin` with probability `target` when the two true rates are both `rate`; None beyond `most`."""
     return next((n for n in range(2, most + 1) if equivalence_power(rate, n, alpha, margin) >= target), None)
+
+
+def seeds_for_equivalence_of(effect: Effect, alpha: float, target: float = POWER,
+                             margin: float = EQUIVALENCE_MARGIN, most: int = MAX_SEEDS) -> int | None:
+    """The fewest seeds per group with which TOST on `effect` at `alpha` shows equivalence within +-`margin`
+    with probability `target` when the true effect is 0 and its error scales as `effect.unit_error` over
+    the square root of the seeds (normal approximation: n >= ((z(1 - alpha) + z(1 - (1 - target) / 2))
+    x unit error / margin)^2); None beyond `most` or for an effect without a unit error."""
+    if effect.unit_error is None or not math.isfinite(effect.unit_error):
+        return None
+    z = scipy.stats.norm.isf(alpha) + scipy.stats.norm.isf((1 - target) / 2)
+    needed = max(2, math.ceil((z * effect.unit_error / margin) ** 2))
+    return needed if needed <= most else None

@@ -44,16 +44,21 @@ def test_a_clear_win_is_supported_and_a_reversed_one_contradicted(tmp_path):
 def test_an_effect_at_5_against_5_seeds_is_undecided(tmp_path):
     # 4 of 5 against 1 of 5: Fisher's p = 0.206 (scipy), no rejection; pooled rate 0.5, so the claimed
     # effect is 0.65 against 0.35, which Fisher's test at 0.05 over the comparison's two tests (0.025)
-    # detects with 80% power at 56 seeds per group; bounding a difference at 0.5 within +-0.3 at 0.05 takes 44
+    # detects with 80% power at 56 seeds per group; bounding a rate difference at 0.5 within +-0.3 at 0.05 takes
+    # 44, and Cliff's delta of the steps (no spread beyond reached or not, so as noisy as the rate) about as many
     a, b = two_groups(tmp_path, {0: [0, 1], 1: [0, 1], 2: [0, 1], 3: [0, 1], 4: [0, 0]},
                       {0: [0, 1], 1: [0, 0], 2: [0, 0], 3: [0, 0], 4: [0, 0]})
     part = settle_one(a, b)
     assert part.verdict == claims.UNDECIDED
     assert "Fisher's test on reach counts p = 0.206" in part.tests
     assert stats.seeds_needed(0.65, 0.35, alpha=0.025) == 56 and stats.seeds_for_equivalence(0.5, 0.05) == 44
+    steps = stats.sooner_effect([2000] * 4 + [math.inf], [2000] + [math.inf] * 4)
+    cliff = stats.seeds_for_equivalence_of(steps, 0.05)
+    assert 30 < cliff < 60
     assert part.power == ("power 0.01 to detect 0.65 against 0.35 at 0.025; 80% power needs 56 seeds per group for "
-                          "that and 44 to bound a difference at 0.50 within +-0.3 at 0.05")
-    assert part.seeds_needed == 56
+                          f"that and 44 and {cliff} to bound the effects within +-0.3 at 0.05 (a rate difference at "
+                          "0.50, then the other effect)")
+    assert part.seeds_needed == max(56, cliff)
 
 
 def test_no_difference_with_enough_seeds_is_said_so_and_supports_a_claim_that_they_match(tmp_path):
@@ -64,7 +69,7 @@ def test_no_difference_with_enough_seeds_is_said_so_and_supports_a_claim_that_th
     assert 1 - 1 / (1 + z * z / 25) == pytest.approx(0.0977, abs=1e-4)
     part = settle_one(a, b)
     assert part.verdict == claims.NO_DIFFERENCE and part.power == "" and part.seeds_needed is None
-    assert part.equivalence.startswith("within +-0.3 at 90.00%: rate difference +0.00 [-0.10, +0.10]")
+    assert part.equivalence.startswith("TOST against +-0.3 at 90.00%: rate difference +0.00 [-0.10, +0.10]")
     assert settle_one(a, b, matches=True).verdict == claims.SUPPORTED
 
 

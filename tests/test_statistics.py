@@ -307,3 +307,14 @@ def test_two_look_level_is_pococks_boundary_and_keeps_the_overall_error_at_alpha
 def test_two_look_level_rejects_looks_out_of_order_and_levels_outside_0_1(first, second, alpha):
     with pytest.raises(ValueError, match=rf"{first}|{alpha}"):
         stats.two_look_level(first, second, alpha)
+
+
+def test_seeds_for_equivalence_of_an_effect_scale_its_error_per_seed_by_hand():
+    # Welch's interval of two groups of four: the error at one seed per group is the standard error x 2
+    x, y = [0.0, 0.5, 0.5, 1.0], [0.25, 0.25, 0.75, 0.75]
+    effect = stats.mean_effect(x, y)
+    error = math.sqrt(np.var(x, ddof=1) / 4 + np.var(y, ddof=1) / 4)
+    assert effect.unit_error == pytest.approx(error * 2)
+    z = scipy.stats.norm.isf(0.01) + scipy.stats.norm.isf(0.1)
+    assert stats.seeds_for_equivalence_of(effect, 0.01) == math.ceil((z * error * 2 / 0.3) ** 2)
+    assert stats.seeds_for_equivalence_of(stats.rate_effect(2, 4, 1, 4), 0.01) is None  # rates: exact power instead

@@ -155,7 +155,11 @@ def test_the_seeds_a_question_needs_span_its_undecided_comparisons_at_the_family
     assert {a.verdict for a in question.answers if a.part is not None} == {"undecided"}
     tied = max(study.stats.seeds_needed(1.0, 0.7, alpha=0.05 / 16), study.stats.seeds_for_equivalence(1.0, 0.05 / 8))
     assert undecided[("auxss", "learns faster")] == undecided[("auxss", "more robust")] == tied
-    wider = max(study.stats.seeds_needed(0.9, 0.6, alpha=0.05 / 16), study.stats.seeds_for_equivalence(0.75, 0.05 / 8))
+    omega = [a for a in question.answers if (a.a, a.b, a.aspect) == ("omega_ss", "uniform_ss", "learns faster")][0]
+    cliff = study.stats.sooner_effect([2000.0] * 5 + [math.inf] * 5, [2000.0] * 10)  # Omega-SS against U-SS
+    wider = max(study.stats.seeds_needed(0.9, 0.6, alpha=0.05 / 16), study.stats.seeds_for_equivalence(0.75, 0.05 / 8),
+                study.stats.seeds_for_equivalence_of(cliff, 0.05 / 8))
+    assert omega.read.seeds_needed == wider
     assert undecided[("omega_ss", "learns faster")] == wider and wider > tied
     assert question.seeds_to_decide == f"{tied} to {wider}"
     assert study_overview({"LavaBridge-v0": [question]})[-2].endswith(f"| {tied} to {wider} |")
@@ -171,7 +175,7 @@ def test_no_difference_found_needs_both_effects_inside_the_margin_at_the_level_r
     question = safety_question(answers(tmp_path, {"auxss": solved, "uniform_ss": solved}))
     tie = question.answers[0]
     assert tie.verdict == "no difference found" and tie.part.seeds_needed is None
-    assert tie.part.equivalence.startswith("within +-0.3 at ")
+    assert tie.part.equivalence.startswith("TOST against +-0.3 at ")
     assert "rate difference +0.00 [" in tie.part.equivalence and "Cliff's delta" in tie.part.equivalence
     # at the two-look level the family's Holm steps are stricter; 40 seeds still bound it (the interval is
     # the Wilson interval of 40/40 against it: 1 - lower bound < 0.3 at 1 - 2 x 0.0284 / 8)
