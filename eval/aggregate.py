@@ -27,8 +27,7 @@ method) has no estimate (NaN). rliable draws its resamples from NumPy's global g
 `random_state` it is given, so the bootstrap runs under a fixed global seed (`BOOTSTRAP_SEED`,
 restored afterwards): a report is reproducible bit for bit. `BOOTSTRAP_REPS` = 2,000 resamples, not
 rliable's 50,000: on 25 seeds x 30 steps of uniform random scores the bounds of the two differed by
-0.0025 in median and 0.010 at most (intervals about 0.3 wide), while 50,000 take 25 times as long:
-3.6-3.9 s of CPU per group and metric there, against 0.15 s (`_iqm_intervals` timed at commit 6ebe993).
+0.0025 in median and 0.010 at most (intervals about 0.3 wide), while 50,000 take 25 times as long.
 
 **Late-training means.** Per group and metric, each seed's mean over the evaluations in the last
 third of the group's common steps (those past two thirds of its last one: 210,000-300,000 of
