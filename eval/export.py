@@ -1,11 +1,11 @@
 """`lava-bridge-bench export RUNS RESULTS`: compact copies of finished runs, for committing to results/.
 
 A compact copy holds what `report`, `summary` and the findings read (config.json, provenance.json,
-metrics.csv, episodes.csv, start_weights.npz) and none of the checkpoints, policies or videos: a few
-hundred kB per run instead of several MB. A run's metrics.csv is verified against its checksum file
-(eval/checksums.py) before it is copied, and the checksum file goes with it. Every run directory under RUNS, at any depth, lands at the
-same relative path under RESULTS, so `runs/study/TASK/METHOD-d500/seed7` becomes
-`RESULTS/TASK/METHOD-d500/seed7`.
+metrics.csv with its checksum file metrics.csv.sha256, episodes.csv, start_weights.npz) and none of the
+checkpoints, policies or videos: a few hundred kB per run instead of several MB. A run's metrics.csv is
+verified against its checksum file (eval/checksums.py) before it is copied. Every run directory under
+RUNS, at any depth, lands at the same relative path under RESULTS, so
+`runs/study/TASK/METHOD-d500/seed7` becomes `RESULTS/TASK/METHOD-d500/seed7`.
 
 Only finished runs are exported (final.pt written and the last evaluation at config.json's `steps`):
 a run still training or stopped part-way would put half a learning curve beside whole ones. The others
@@ -104,7 +104,8 @@ def export(runs: Path, results: Path, unfinished: bool = False) -> Export:
             continue
         blocked = nearest_existing(target)
         if not blocked.is_dir():
-            done.refused.append(f"{name}: cannot make the copy's directory {target}: {blocked} is a file; move it aside")
+            done.refused.append(f"{name}: cannot make the copy's directory {target}: {blocked} is a file; "
+                                "move it aside")
             continue
         target.mkdir(parents=True, exist_ok=True)
         if stale:  # first: until the new one is written, the copy's metrics.csv reads as unverified
