@@ -1,18 +1,21 @@
 """`lava-bridge-bench export RUNS RESULTS`: compact copies of finished runs, for committing to results/.
 
 A compact copy holds what `report`, `summary` and the findings read (config.json, provenance.json,
-metrics.csv, episodes.csv, start_weights.npz) and none of the checkpoints, policies or videos: a few
-hundred kB per run instead of several MB. Every run directory under RUNS, at any depth, lands at the
-same relative path under RESULTS, so `runs/study/TASK/METHOD-d500/seed7` becomes
-`RESULTS/TASK/METHOD-d500/seed7`.
+metrics.csv with its checksum file metrics.csv.sha256, episodes.csv, start_weights.npz) and none of the
+checkpoints, policies or videos: a few hundred kB per run instead of several MB. A run's metrics.csv is
+verified against its checksum file (eval/checksums.py) before it is copied. Every run directory under
+RUNS, at any depth, lands at the same relative path under RESULTS, so
+`runs/study/TASK/METHOD-d500/seed7` becomes `RESULTS/TASK/METHOD-d500/seed7`.
 
 Only finished runs are exported (final.pt written and the last evaluation at config.json's `steps`):
 a run still training or stopped part-way would put half a learning curve beside whole ones. The others
 are listed with how far they got; `--unfinished` exports them too (a seed that diverged and stopped
 is a result). A copy replaces an earlier copy of the same run at a smaller budget (the run was
 extended since); a target holding another configuration, or the same run at a larger budget, is
-refused and nothing of that run is written. Each file is replaced atomically and config.json last,
-so an export killed part-way leaves whole files that a rerun completes.
+refused and nothing of that run is written, and so is a run whose files are damaged or changed since
+it wrote them. Each file is replaced atomically and config.json last, so an export killed part-way
+leaves whole files that a rerun completes (a copy's old checksum file goes first and its new one after
+its metrics.csv: in between, the copy reads as unverified, never as changed).
 
     lava-bridge-bench export runs/study results/study
 """
@@ -24,13 +27,16 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from lava_bridge_mj.eval.atomic import atomic_write
+from lava_bridge_mj.eval.atomic import atomic_write, nearest_existing
+from lava_bridge_mj.eval.checksums import checksum_file
 from lava_bridge_mj.eval.config import RunConfig
 from lava_bridge_mj.eval.run_files import DamagedFileError, read_config
 from lava_bridge_mj.eval.summary import read_metrics
 
-COMPACT_FILES = ("provenance.json", "metrics.csv", "episodes.csv", "start_weights.npz", "config.json")
-"""The files a compact copy holds, in the order they are written: config.json last."""
+CHECKSUMS = checksum_file("metrics.csv").name
+COMPACT_FILES = ("provenance.json", "metrics.csv", "episodes.csv", "start_weights.npz", CHECKSUMS, "config.json")
+"""The files a compact copy holds, in the order they are written: metrics.csv's checksum file after it,
+config.json last."""
 
 
 @dataclass
@@ -74,8 +80,12 @@ def export(runs: Path, results: Path, unfinished: bool = False) -> Export:
         if not (source / "metrics.csv").is_file():
             continue
         name = str(source.relative_to(runs))
-        config = read_config(source)
-        finished, last = progress(source, config)
+        try:
+            config = read_config(source)
+            finished, last = progress(source, config)  # metrics.csv verified against its checksum file
+        except DamagedFileError as error:
+            done.refused.append(f"{name}: {error}")
+            continue
         if not finished:
             done.unfinished.append(f"{name} (last evaluation at step {last:,.0f} of {config.get('steps', 0):,})")
             if not unfinished:
@@ -88,10 +98,18 @@ def export(runs: Path, results: Path, unfinished: bool = False) -> Export:
         contents = {f: (source / f).read_bytes() for f in COMPACT_FILES if (source / f).is_file()}
         changed = {f: data for f, data in contents.items()
                    if not ((target / f).is_file() and (target / f).read_bytes() == data)}
-        if not changed:
+        stale = CHECKSUMS in changed or (CHECKSUMS not in contents and (target / CHECKSUMS).exists())
+        if not changed and not stale:
             done.unchanged.append(name)
             continue
+        blocked = nearest_existing(target)
+        if not blocked.is_dir():
+            done.refused.append(f"{name}: cannot make the copy's directory {target}: {blocked} is a file; "
+                                "move it aside")
+            continue
         target.mkdir(parents=True, exist_ok=True)
+        if stale:  # first: until the new one is written, the copy's metrics.csv reads as unverified
+            (target / CHECKSUMS).unlink(missing_ok=True)
         for file, data in changed.items():  # in COMPACT_FILES order: config.json last
             atomic_write(target / file, lambda f, data=data: f.write(data))
         done.exported.append(name)
@@ -108,14 +126,20 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if not args.runs.is_dir():
         parser.error(f"RUNS {str(args.runs)!r} is not a directory")
+    if args.results.exists() and not args.results.is_dir():
+        parser.error(f"RESULTS {str(args.results)!r} exists and is not a directory")
     runs, results = args.runs.resolve(), args.results.resolve()
     if results == runs or results.is_relative_to(runs):
         parser.error(f"RESULTS {str(args.results)!r} lies inside RUNS {str(args.runs)!r}: the copies would be "
                      "exported again; choose a directory outside it")
     try:
         done = export(args.runs, args.results, args.unfinished)
-    except (ValueError, OSError) as error:  # an unreadable config.json or metrics.csv names its file
+    except ValueError as error:  # an unreadable config.json or metrics.csv names its file
         print(f"{parser.prog}: error: {error}", file=sys.stderr)
+        return 2
+    except OSError as error:  # a full disk, a directory that turned read-only, ...
+        print(f"{parser.prog}: error: {error.filename or args.results}: {error.strerror or error}; the files "
+              "copied so far are whole: fix that and export again to complete the copies", file=sys.stderr)
         return 2
     print(f"exported {len(done.exported)} run(s) to {args.results}, {len(done.unchanged)} unchanged")
     for title, lines in (("not finished" + ("" if args.unfinished else ", not exported"), done.unfinished),

@@ -7,10 +7,13 @@ A run directory holds:
                         settings, defaults filled in
     metrics.csv         one row per evaluation (METRIC_FIELDS): steps, success from p0 and ood, returns,
                         SAC stats
+    metrics.csv.sha256  its checksum (eval/checksums.py): readers refuse a metrics.csv changed since it
+                        was written
     start_weights.npz   the start strategy's candidate states and its weights at every evaluation
     episodes.csv        one row per training episode of an online method (EPISODE_FIELDS)
     checkpoint.pt       the latest checkpoint: everything needed to continue exactly
-    checkpoint.prev.pt  the one before it (a resume falls back to it when the latest is damaged)
+    checkpoint.prev.pt  the one before it (a resume falls back to it when the latest is damaged); a
+                        kill while the latest is replaced leaves it alone, never two names of one file
     policies/step_N.pt  the actor's weights at every evaluation (for videos and later analysis)
     final.pt            the checkpoint at the end of training
     videos/step_N.mp4   rollouts from p0 and ood at every evaluation (only with --log-videos)
@@ -19,11 +22,17 @@ A run directory holds:
 The trainer, sweep and video read and write them through this module.
 
 Checkpoints and policy snapshots are torch's zip archives, whose every record carries a CRC-32 that
-torch itself never checks on load: a flipped bit would silently change a resumed run or a video.
-`load_torch` checks every record's CRC (the standard library's `zipfile.testzip`) before loading,
-so a damaged file is refused by name, never used. `save_torch` serialises to memory first, so a
-failing write (a full disk) surfaces as the OSError naming it rather than deep inside torch's
-writer, and the file is replaced atomically.
+torch itself never checks on load, read by torch's own zip reader, which a damaged central directory
+can make return a tensor it never filled: a flipped bit would silently change a resumed run or a
+video. `save_torch` adds one record to the archive, the `content_digest` of what it holds, and
+`load_torch` checks every record's CRC (the standard library's `zipfile.testzip`) before loading and
+that digest on what torch loaded after, so a damaged file is refused by name, never used. A file
+written before digests were kept loads with its CRCs checked alone. `save_torch` serialises to
+memory first, so a failing write (a full disk) surfaces as the OSError naming it rather than deep
+inside torch's writer, and the file is replaced atomically.
+
+A process killed mid-write leaves a temporary file (eval/atomic.py) that `remove_leftovers` clears
+when the run is resumed or overwritten.
 """
 
 from __future__ import annotations
@@ -41,12 +50,13 @@ from typing import Any
 
 import numpy as np
 
-from lava_bridge_mj.eval.atomic import atomic_write, atomic_write_text
+from lava_bridge_mj.eval.atomic import atomic_write, atomic_write_text, remove_stale_temporaries
+from lava_bridge_mj.eval.checksums import CHECKSUM_SUFFIX, DamagedFileError, content_digest, write_checked
 
 CHECKPOINTS = ("checkpoint.pt", "checkpoint.prev.pt")
 """The latest checkpoint and the one before it (a resume falls back to it when the latest is damaged)."""
-RUN_FILES = ("config.json", "provenance.json", "metrics.csv", "start_weights.npz", "episodes.csv", *CHECKPOINTS,
-             "final.pt", "rollouts.mp4")
+RUN_FILES = ("config.json", "provenance.json", "metrics.csv", f"metrics.csv{CHECKSUM_SUFFIX}", "start_weights.npz",
+             "episodes.csv", *CHECKPOINTS, "final.pt", "rollouts.mp4")
 """What a run directory holds besides policies/: what --overwrite removes."""
 POLICIES = "policies"
 """policies/step_N.pt: the actor's weights at every evaluation."""
@@ -73,10 +83,6 @@ class RunDirectoryError(ValueError):
     """The run directory cannot be used: another run's results, or another process writing it."""
 
 
-class DamagedFileError(ValueError):
-    """A run file exists but cannot be used: truncated, bit-flipped or not what it should be."""
-
-
 def run_files(directory: str | Path) -> list[str]:
     """The names of the run files `directory` holds (policies/ included): any one makes it a run
     directory, which nothing replaces without --overwrite."""
@@ -87,11 +93,19 @@ def run_files(directory: str | Path) -> list[str]:
 
 
 def remove_run(directory: Path) -> None:
-    """Delete the run files of `directory` (what --overwrite replaces)."""
+    """Delete the run files of `directory` (what --overwrite replaces) and what killed writers left."""
     for name in RUN_FILES:
         (directory / name).unlink(missing_ok=True)
     for name in RUN_FOLDERS:
         shutil.rmtree(directory / name, ignore_errors=True)
+    remove_leftovers(directory)
+
+
+def remove_leftovers(directory: Path) -> None:
+    """Delete the temporary files that writers killed mid-write left in the run `directory` (a
+    checkpoint's, metrics', a policy snapshot's, a video's), those of a live process excepted."""
+    for folder in (directory, directory / POLICIES, directory / VIDEOS):
+        remove_stale_temporaries(folder)
 
 
 def read_config(directory: Path) -> dict[str, Any] | None:
@@ -120,10 +134,15 @@ def check_run_directory(config: Any, directory: Path, resume: bool, overwrite: b
     """Refuse (RunDirectoryError) a directory holding any run file unless resuming the same
     configuration (`config.continues` its config.json) or overwriting."""
     found = run_files(directory)
+    folders = [name for name in RUN_FILES if (directory / name).is_dir()]
+    if folders:  # nothing the trainer wrote: neither read as a run file nor removed by an overwrite
+        raise RunDirectoryError(f"{directory / folders[0]} is a directory, where the run keeps a file of that name; "
+                                "move it aside")
     if not found or overwrite:
         return
     if not resume:
-        raise RunDirectoryError(f"{directory} already holds a run ({', '.join(found)}); resume it or overwrite it")
+        raise RunDirectoryError(f"{directory} already holds a run ({', '.join(found)}); resume it (--resume, or "
+                                "resume=True in Python) or overwrite it (--overwrite, or overwrite=True)")
     config_file = directory / "config.json"
     if not config_file.exists():
         raise RunDirectoryError(f"{directory} holds run files ({', '.join(found)}) but no config.json, so "
@@ -157,9 +176,10 @@ def run_status(config: Any, directory: Path) -> str:
 
 
 def checkpoint_step(directory: Path) -> int | str | None:
-    """The step of the run's latest checkpoint; None without one; the error text if it is unreadable."""
-    path = directory / CHECKPOINTS[0]
-    if not path.exists():
+    """The step of the run's latest checkpoint (the one before it where a kill left only that); None
+    without one; the error text if it is unreadable."""
+    path = next((directory / name for name in CHECKPOINTS if (directory / name).exists()), None)
+    if path is None:
         return None
     try:
         return int(load_torch(path)["step"])
@@ -214,7 +234,7 @@ def write_results(directory: Path, rows: Sequence[dict], steps: np.ndarray, stat
     writer = csv.DictWriter(text, fieldnames=METRIC_FIELDS, lineterminator="\n")
     writer.writeheader()
     writer.writerows(rows)
-    atomic_write_text(directory / "metrics.csv", text.getvalue())
+    write_checked(directory / "metrics.csv", text.getvalue().encode())
     atomic_write(directory / "start_weights.npz",
                  lambda f: np.savez(f, steps=steps, states=states, probabilities=probabilities))
     if episode_log is not None:
@@ -226,14 +246,9 @@ def write_results(directory: Path, rows: Sequence[dict], steps: np.ndarray, stat
 
 
 def save_checkpoint(directory: Path, state: dict, name: str = CHECKPOINTS[0]) -> None:
-    """Write `state` atomically; the checkpoint it replaces becomes checkpoint.prev.pt first."""
-    path = directory / name
-    if name == CHECKPOINTS[0] and path.exists():
-        link = directory / f".{CHECKPOINTS[1]}.link{os.getpid()}"
-        link.unlink(missing_ok=True)
-        os.link(path, link)  # a second name for the same file, then an atomic rename over prev
-        os.replace(link, directory / CHECKPOINTS[1])
-    save_torch(path, state)
+    """Write `state` atomically; the checkpoint it replaces becomes checkpoint.prev.pt once the new one
+    is complete (a kill in between leaves it there and no checkpoint.pt: a resume continues from it)."""
+    save_torch(directory / name, state, previous=directory / CHECKPOINTS[1] if name == CHECKPOINTS[0] else None)
 
 
 def read_checkpoint(path: Path, config: Any) -> dict:
@@ -241,7 +256,7 @@ def read_checkpoint(path: Path, config: Any) -> dict:
     then falls back to the other one), ValueError when it belongs to another configuration (one that
     `config.continues` refuses) or format."""
     state = load_torch(path)
-    if not isinstance(state, dict) or "version" not in state:
+    if not isinstance(state, dict) or not {"version", "config", "step"} <= state.keys():
         raise DamagedFileError(f"{path} is not a lava-bridge-mj checkpoint")
     if state["version"] != CHECKPOINT_VERSION:
         raise ValueError(f"checkpoint {path} has format version {state['version']!r} and this lava-bridge-mj "
@@ -253,35 +268,65 @@ def read_checkpoint(path: Path, config: Any) -> dict:
     return state
 
 
-def save_torch(path: str | Path, obj: Any) -> None:
-    """torch.save `obj` to `path` atomically (OSError names the file when the write fails)."""
+DIGEST_RECORD = "lava_bridge_mj_content.sha256"
+"""The record, beside torch's own in its archive folder, holding the `content_digest` of the saved object."""
+
+
+def save_torch(path: str | Path, obj: Any, previous: str | Path | None = None) -> None:
+    """torch.save `obj` to `path` atomically, with its content digest (OSError names the file when the
+    write fails). With `previous`, the file `path` held moves there once the new one is complete."""
     import torch  # on use: readers of metrics and configs never load torch
 
     buffer = io.BytesIO()
     torch.save(obj, buffer)
+    with zipfile.ZipFile(buffer, "a") as archive:  # torch reads only the records it wrote
+        folder = archive.namelist()[0].split("/")[0]
+        archive.writestr(f"{folder}/{DIGEST_RECORD}", content_digest(obj))
     payload = buffer.getvalue()
-    atomic_write(path, lambda f: f.write(payload))
+    atomic_write(path, lambda f: f.write(payload), previous=previous)
 
 
 def load_torch(path: str | Path, *, weights_only: bool = False) -> Any:
-    """torch.load `path` after checking the CRC of every record of its zip archive; DamagedFileError
-    naming the file when it is truncated, bit-flipped or not a torch file. FileNotFoundError as usual."""
+    """torch.load `path` after checking the CRC of every record of its zip archive, then the content
+    digest of what torch loaded (where the file has one); DamagedFileError naming the file when it is
+    truncated, bit-flipped, not a torch file or not a file at all. FileNotFoundError as usual."""
     import torch
 
     path = Path(path)
-    payload = path.read_bytes()
+    if path.is_dir():
+        raise DamagedFileError(f"{path} is a directory, not a torch file")
+    try:
+        payload = path.read_bytes()
+    except FileNotFoundError:
+        raise
+    except OSError as error:  # unreadable (permissions, an I/O error): unusable all the same
+        raise DamagedFileError(f"{path} cannot be read: {error.strerror or error}") from None
     try:
         with zipfile.ZipFile(io.BytesIO(payload)) as archive:
             bad = archive.testzip()
-    except (zipfile.BadZipFile, OSError, ValueError, EOFError) as error:
-        raise DamagedFileError(f"{path} is damaged or not a torch file ({error})") from None
+            digest = next((archive.read(name).decode() for name in archive.namelist()
+                           if name.partition("/")[2] == DIGEST_RECORD), None)
+    except Exception as error:  # noqa: BLE001 - BadZipFile, NotImplementedError, zlib.error, ...
+        raise DamagedFileError(f"{path} is damaged or not a torch file ({_one_line(error)})") from None
     if bad is not None:
         raise DamagedFileError(f"{path} is damaged: its record {bad!r} fails its CRC check")
     try:
         # onto the CPU whatever device a tensor was saved from: every file loads on a machine without CUDA
-        return torch.load(io.BytesIO(payload), weights_only=weights_only, map_location="cpu")
+        obj = torch.load(io.BytesIO(payload), weights_only=weights_only, map_location="cpu")
+        loaded = content_digest(obj) if digest is not None else None
     except Exception as error:  # noqa: BLE001 - a damaged archive can fail inside torch in many ways
-        raise DamagedFileError(f"{path} cannot be read ({type(error).__name__}: {error})") from None
+        raise DamagedFileError(f"{path} cannot be read ({_one_line(error)})") from None
+    if loaded != digest:
+        raise DamagedFileError(f"{path} is damaged: what torch loaded from it differs from what was saved "
+                               "(its content digest does not match)")
+    return obj
+
+
+def _one_line(error: BaseException) -> str:
+    """`error`'s type (zlib.error, not error) and the first line of its message."""
+    kind = type(error).__qualname__ if type(error).__module__ == "builtins" else \
+        f"{type(error).__module__}.{type(error).__qualname__}"
+    return f"{kind}: {(str(error).strip().splitlines() or [''])[0]}"
 
 
 @contextmanager
@@ -289,20 +334,37 @@ def locked(directory: Path):
     """Hold an exclusive lock on directory/.lock: two processes never write one run directory."""
     import fcntl  # POSIX only: imported where a lock is taken, so reading runs works anywhere
 
-    with open(Path(directory) / LOCK, "a+") as lock:
+    path = Path(directory) / LOCK
+    try:  # the first write to a run directory: where a full disk fails first
+        lock = open(path, "a+b", buffering=0)  # unbuffered: a failed write is not retried on close
+    except OSError as error:
+        raise _naming(error, path) from None
+    with lock:
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             lock.seek(0)
+            holder = lock.read().decode(errors="replace").strip()
             raise RunDirectoryError(f"{directory} is being written by another process "
-                                    f"(pid {lock.read().strip() or '?'}); not starting a second writer") from None
-        lock.truncate(0)
-        lock.write(str(os.getpid()))
-        lock.flush()
+                                    f"(pid {holder or '?'}); not starting a second writer") from None
+        try:
+            lock.truncate(0)
+            pid = str(os.getpid()).encode()
+            while pid:
+                pid = pid[lock.write(pid):]
+        except OSError as error:  # closing the file releases the lock
+            raise _naming(error, path) from None
         try:
             yield
         finally:
             fcntl.flock(lock, fcntl.LOCK_UN)
+
+
+def _naming(error: OSError, path: Path) -> OSError:
+    """`error`, naming `path` if it named no file."""
+    if error.filename is None:
+        error.filename = str(path)
+    return error
 
 
 def lock_holder(directory: Path) -> str | None:

@@ -40,7 +40,7 @@ from lava_bridge_mj.eval.evaluate import EVAL_STARTS, MAX_EVAL_ENVS, evaluate
 from lava_bridge_mj.eval.provenance import code_provenance
 from lava_bridge_mj.eval.run_files import (CHECKPOINTS, VIDEOS, DamagedFileError, RunDirectoryError,
                                            append_provenance, check_run_directory, check_strategy_unchanged,
-                                           locked, read_checkpoint, remove_run, write_config)
+                                           locked, read_checkpoint, remove_leftovers, remove_run, write_config)
 from lava_bridge_mj.eval.seed_run import SeedRun
 from lava_bridge_mj.eval.tracking import ProgressReport, check_sinks, open_sink
 from lava_bridge_mj.vector import LavaBridgeVectorEnv
@@ -419,6 +419,8 @@ def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seed
             for directory in dirs:
                 remove_run(directory)
         if resume:
+            for directory in dirs:
+                remove_leftovers(directory)
             run.resume()
             for seed_run in run.seed_runs if run.step > 0 else ():  # a run restarted from 0 changes nothing
                 check_strategy_unchanged(seed_run.dir, seed_run.strategy_settings)

@@ -21,6 +21,7 @@ import argparse
 import csv
 import dataclasses
 import functools
+import io
 import math
 import sys
 from pathlib import Path
@@ -30,6 +31,7 @@ import numpy as np
 import lava_bridge_mj
 from lava_bridge_mj.agents.reverse_curriculum import goal_reaching_demos
 from lava_bridge_mj.eval import run_files
+from lava_bridge_mj.eval.checksums import read_checked
 from lava_bridge_mj.layout import Layout
 
 THRESHOLD = 0.8
@@ -41,9 +43,10 @@ EPISODE_COLUMNS = ("step", "start_x", "start_y", "success")
 
 def read_csv(path: Path, columns: tuple[str, ...]) -> list[dict[str, float]]:
     """The rows of a CSV file of numbers as dicts; ValueError naming the file (and the line) when it
-    cannot be read, lacks one of `columns`, or holds something other than numbers."""
+    cannot be read, does not match its checksum file (where it has one: eval/checksums.py), lacks one
+    of `columns`, or holds something other than numbers."""
     try:
-        with open(path, newline="") as f:
+        with io.StringIO(read_checked(path).decode(), newline="") as f:
             reader = csv.DictReader(f)
             missing = [name for name in columns if name not in (reader.fieldnames or ())]
             if missing:

@@ -9,6 +9,7 @@ import ctypes
 import dataclasses
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -21,7 +22,7 @@ from pathlib import Path
 
 import lava_bridge_mj
 from lava_bridge_mj.eval.arguments import format_seeds
-from lava_bridge_mj.eval.atomic import atomic_write_text
+from lava_bridge_mj.eval.atomic import atomic_write_text, process_alive
 from lava_bridge_mj.eval.config import RunConfig
 from lava_bridge_mj.eval.run_files import DamagedFileError, checkpoint_step, read_config, run_status
 
@@ -29,6 +30,8 @@ JOB_COMMAND = ("import sys; from lava_bridge_mj.eval.sweep_jobs import job_main;
                "job_main(sys.argv[1], sys.argv[2], int(sys.argv[3]))")
 """How a local worker process is started: python -c JOB_COMMAND SPEC_JSON RESULT_FILE SWEEP_PID."""
 PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+RESULT_FOLDER = "lava-bridge-sweep-"
+"""The local pool's folder of job results in the temporary directory: lava-bridge-sweep-PID-XXXX."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -245,7 +248,8 @@ def run_local(todo: list[tuple[int, dict]], record: SweepRecord, workers: int, p
     env = {**os.environ, **worker_environment(todo[0][1]["threads"])} if todo else {}
     queue, running = list(todo), {}
     last_progress = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix="lava-bridge-sweep-") as results:
+    remove_stale_result_folders()
+    with tempfile.TemporaryDirectory(prefix=f"{RESULT_FOLDER}{os.getpid()}-") as results:
         try:
             while queue or running:
                 if progress_every and running and time.perf_counter() - last_progress >= progress_every:
@@ -295,6 +299,14 @@ def run_local(todo: list[tuple[int, dict]], record: SweepRecord, workers: int, p
             for index, (process, result_file, spec) in running.items():
                 _finish(record, index, process, result_file, spec, stopped=True)
             raise
+
+
+def remove_stale_result_folders() -> None:
+    """Remove the result folders that killed sweeps left in the temporary directory (their PID gone)."""
+    for folder in Path(tempfile.gettempdir()).glob(f"{RESULT_FOLDER}*"):
+        pid, dash, _ = folder.name[len(RESULT_FOLDER):].partition("-")
+        if dash and pid.isdigit() and not process_alive(int(pid)) and folder.is_dir():
+            shutil.rmtree(folder, ignore_errors=True)
 
 
 def _finish(record: SweepRecord, index: int, process: subprocess.Popen, result_file: Path, spec: dict,

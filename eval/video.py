@@ -22,6 +22,7 @@ the trail and the start marker are extra geoms added to the scene before each fr
 from __future__ import annotations
 
 import argparse
+import errno
 import io
 import os
 import re
@@ -103,8 +104,9 @@ def record_rollouts(env, policy: Callable[[np.ndarray], np.ndarray], path: str |
                             writer.append_data(frame)
                         started = True
                     except (OSError, RuntimeError) as error:  # ffmpeg stopped reading: its log says why
-                        reason = _ffmpeg_reason(ffmpeg_log) or f"ffmpeg stopped writing it ({error})".splitlines()[0]
-                        raise OSError(getattr(error, "errno", None), reason, str(path)) from None
+                        code, reason = _ffmpeg_failure(ffmpeg_log)
+                        reason = reason or f"ffmpeg stopped writing it ({error})".splitlines()[0]
+                        raise OSError(code or getattr(error, "errno", None), reason, str(path)) from None
 
                 for start in starts:
                     for episode in range(episodes_per_start):
@@ -118,9 +120,9 @@ def record_rollouts(env, policy: Callable[[np.ndarray], np.ndarray], path: str |
                             append(render_frame(env, trail))
                             done = terminated or truncated
                         successes[start] += bool(info["is_success"])
-            reason = _ffmpeg_reason(ffmpeg_log)  # imageio does not check how ffmpeg ended
+            code, reason = _ffmpeg_failure(ffmpeg_log)  # imageio does not check how ffmpeg ended
             if reason:
-                raise OSError(None, reason, str(path))
+                raise OSError(code, reason, str(path))
         if still is not None:
             image = io.BytesIO()
             imageio.imwrite(image, render_frame(env, trail), format=Path(still).suffix.lstrip(".").lower())
@@ -149,11 +151,21 @@ def _stderr_into(file):
         os.close(saved)
 
 
-def _ffmpeg_reason(log) -> str:
-    """ffmpeg's last message in `log` (at level "error": there is one only if it failed)."""
+SYSTEM_ERRORS = {os.strerror(code): code for code in sorted(errno.errorcode, reverse=True)}
+"""The system's error messages (as ffmpeg prints them after a failed write) and their errno."""
+
+
+def _ffmpeg_failure(log) -> tuple[int | None, str]:
+    """(errno, reason) of ffmpeg's failure as its `log` tells it (at level "error": it has lines only
+    if it failed): the first system error it names (a full disk: ENOSPC, "No space left on device"),
+    else (None, its last message); (None, "") for an empty log."""
     log.seek(0)
     lines = [line.strip() for line in log.read().decode(errors="replace").splitlines() if line.strip()]
-    return lines[-1] if lines else ""
+    for line in lines:
+        for message, code in SYSTEM_ERRORS.items():
+            if line.endswith((f": {message}", f"({message})")):
+                return code, message
+    return None, lines[-1] if lines else ""
 
 
 def output_problem(path: Path, option: str, suffixes: tuple[str, ...]) -> str | None:

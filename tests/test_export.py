@@ -10,7 +10,7 @@ from conftest import interrupted_copy
 from lava_bridge_mj.agents.configs import SACConfig
 from lava_bridge_mj.eval import cli
 from lava_bridge_mj.eval.config import RunConfig
-from lava_bridge_mj.eval.export import COMPACT_FILES, main
+from lava_bridge_mj.eval.export import CHECKSUMS, COMPACT_FILES, main
 from lava_bridge_mj.eval.runner import train
 
 TINY = dict(method="auxss", steps=300, eval_every=100, eval_episodes=2, demo_subset=20,
@@ -99,3 +99,33 @@ def test_bad_directories_are_refused_with_a_usage_line_and_nothing_written(runs,
         cli.main(["export", str(source), str(results)])
     assert stop.value.code == 2 and message in capsys.readouterr().err
     assert not results.exists()
+
+
+def test_a_copy_carries_the_metrics_checksum_and_verifies(runs, tmp_path):
+    from lava_bridge_mj.eval.summary import read_metrics
+
+    results = tmp_path / "results"
+    assert main([str(runs), str(results)]) == 0
+    copy = results / "auxss-d500/seed3"
+    assert (copy / CHECKSUMS).read_bytes() == (runs / "auxss-d500/seed3" / CHECKSUMS).read_bytes()
+    assert len(read_metrics(copy)) == 3  # verified against the checksum file it came with
+    legacy = tmp_path / "legacy"  # a run written before checksums: its copy must not keep an old one
+    shutil.copytree(runs / "auxss-d500/seed3", legacy / "auxss-d500/seed3")
+    (legacy / "auxss-d500/seed3" / CHECKSUMS).unlink()
+    (legacy / "auxss-d500/seed3/metrics.csv").write_text((copy / "metrics.csv").read_text() + "\n")
+    assert main([str(legacy), str(results)]) == 0
+    assert not (copy / CHECKSUMS).exists() and len(read_metrics(copy)) == 3
+
+
+def test_a_results_path_blocked_by_a_file_is_one_line_not_an_errno(runs, tmp_path, capsys):
+    results = tmp_path / "results"
+    results.mkdir()
+    (results / "auxss-d500").write_text("")
+    assert main([str(runs), str(results)]) == 1
+    out = capsys.readouterr().out
+    assert f"cannot make the copy's directory {results / 'auxss-d500/seed3'}: {results / 'auxss-d500'} is a file" in out
+    assert "Errno" not in out
+    with pytest.raises(SystemExit) as stop:
+        main([str(runs), str(results / "auxss-d500")])
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and "exists and is not a directory" in err and "Errno" not in err

@@ -14,9 +14,12 @@ import json
 import os
 import shutil
 import signal
+import struct
 import subprocess
 import sys
+import tempfile
 import time
+import zipfile
 
 import numpy as np
 import pytest
@@ -380,3 +383,277 @@ def test_a_write_that_fails_mid_run_is_one_line_and_loses_nothing(config_file, r
     assert metrics(out) == reference[: len(metrics(out))]
     resume_to_the_end(config_file, out)
     assert metrics(out) == reference
+
+
+# --- damaged checkpoints: what torch itself loads is checked, and any failure falls back -------------------
+def central_directory_entry(data, name):
+    """The offset of the central-directory entry of record `name` in the zip archive `data`."""
+    offset = data.find(b"PK\x01\x02")
+    while offset >= 0:
+        name_length, extra_length, comment_length = struct.unpack_from("<HHH", data, offset + 28)
+        if data[offset + 46:offset + 46 + name_length].decode() == name:
+            return offset
+        offset = data.find(b"PK\x01\x02", offset + 46 + name_length + extra_length + comment_length)
+    raise KeyError(name)
+
+
+def flip(path, offset, mask):
+    data = bytearray(path.read_bytes())
+    data[offset] ^= mask
+    path.write_bytes(bytes(data))
+
+
+def flip_attributes_of_a_tensor_record(path):
+    """Bit 0x10 of the external attributes (offset 38) of record archive/data/15's central-directory entry:
+    torch's zip reader then leaves that tensor's memory unfilled, and every record's CRC still holds."""
+    flip(path, central_directory_entry(path.read_bytes(), "archive/data/15") + 38, 0x10)
+
+
+def flip_compression_method(path, mask=0x01):
+    """A bit of the first central-directory entry's compression method (offset 10): stored (0) becomes
+    1, which no reader supports (NotImplementedError), or 8, deflate, which fails to inflate (zlib.error)."""
+    flip(path, path.read_bytes().find(b"PK\x01\x02") + 10, mask)
+
+
+def test_a_tensor_torch_leaves_unfilled_is_caught_by_the_content_digest(reference_run, tmp_path):
+    from lava_bridge_mj.eval.run_files import DamagedFileError, load_torch
+
+    path = shutil.copy(reference_run / "checkpoint.pt", tmp_path / "checkpoint.pt")
+    load_torch(path)  # intact: its digest matches
+    flip_attributes_of_a_tensor_record(path)
+    with zipfile.ZipFile(path) as archive:
+        assert archive.testzip() is None, "the flip is one no CRC sees"
+    with pytest.raises(DamagedFileError, match="checkpoint.pt is damaged: what torch loaded from it differs"):
+        load_torch(path)
+
+
+@pytest.mark.parametrize("mask, raised_by_zipfile", [(0x01, "NotImplementedError"), (0x08, "zlib.error")])
+def test_a_checkpoint_that_fails_to_decompress_is_damaged_not_a_crash(reference_run, tmp_path, mask, raised_by_zipfile):
+    from lava_bridge_mj.eval.run_files import DamagedFileError, load_torch
+
+    path = shutil.copy(reference_run / "checkpoint.pt", tmp_path / "checkpoint.pt")
+    flip_compression_method(path, mask)
+    with pytest.raises(DamagedFileError, match=f"damaged or not a torch file \\({raised_by_zipfile}: "):
+        load_torch(path)
+
+
+@pytest.mark.parametrize("damage", [flip_attributes_of_a_tensor_record, flip_compression_method])
+def test_a_resume_falls_back_from_a_checkpoint_damaged_anywhere(config_file, reference, reference_run, tmp_path,
+                                                                capsys, damage):
+    """The red team's two flips of checkpoint.pt of a finished run: the resume warns, sets the file aside
+    and continues from checkpoint.prev.pt (step 1250) to the uninterrupted run's end."""
+    out = copy_of(reference_run, tmp_path)
+    damage(out / "checkpoint.pt")
+    assert exit_code_in_process(arguments(config_file, out, "--resume")) == 0
+    stderr = capsys.readouterr().err
+    assert stderr.count("warning:") == 1 and "checkpoint.pt is damaged" in stderr, stderr
+    assert (out / "checkpoint.pt.damaged").exists()
+    assert metrics(out) == reference
+
+
+def test_both_checkpoints_failing_to_load_is_one_line_and_changes_nothing(config_file, reference_run, tmp_path):
+    out = copy_of(reference_run, tmp_path)
+    for name in ("checkpoint.pt", "checkpoint.prev.pt"):
+        flip_compression_method(out / name)
+    files = lambda: {p.name: p.read_bytes() for p in out.iterdir() if p.is_file() and p.name != ".lock"}  # noqa: E731
+    before = files()
+    result = subprocess.run(command(config_file, out, "--resume", "--steps", "1750"), capture_output=True, text=True)
+    assert result.returncode == 2, result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
+    assert "every checkpoint of" in result.stderr and "NotImplementedError" in result.stderr
+    assert files() == before
+
+
+# --- what killed writers leave behind --------------------------------------------------------------------
+def a_dead_pid():
+    """The pid of a process that has exited (and been reaped)."""
+    process = subprocess.Popen([sys.executable, "-c", ""])
+    process.wait()
+    return process.pid
+
+
+LEFTOVERS = (".checkpoint.pt.tmp{pid}", ".metrics.csv.tmp{pid}", "policies/.step_250.pt.tmp{pid}",
+             ".final.pt.tmp{pid}", ".checkpoint.prev.pt.link{pid}")
+
+
+@pytest.mark.parametrize("option", ["--resume", "--overwrite"])
+def test_resume_and_overwrite_remove_the_temporary_files_of_killed_writers(config_file, reference_run, tmp_path,
+                                                                           option):
+    """Files a killed writer left (its pid gone) are removed; one of a live process stays."""
+    out = copy_of(reference_run, tmp_path)
+    stale = [out / name.format(pid=a_dead_pid()) for name in LEFTOVERS]
+    writer = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])
+    live = out / f".checkpoint.pt.tmp{writer.pid}"
+    try:
+        for path in (*stale, live):
+            path.write_bytes(b"partial")
+        steps = ("--steps", "250") if option == "--overwrite" else ()
+        assert exit_code_in_process(arguments(config_file, out, option, *steps)) == 0
+        assert [path.name for path in stale if path.exists()] == []
+        assert live.exists()
+    finally:
+        writer.kill()
+        writer.wait()
+
+
+class Killed(BaseException):
+    """Stands in for SIGKILL at one moment: nothing after it runs (no except clause catches it)."""
+
+
+def test_a_kill_between_rotating_and_writing_a_checkpoint_leaves_a_real_fallback(config_file, reference, tmp_path,
+                                                                                monkeypatch):
+    """Killed as the third checkpoint (step 750) is about to take its name: checkpoint.prev.pt holds step
+    500 and is not a second name of checkpoint.pt (a kill there once left one file under both names, and
+    step 250 lost); the resume continues from step 500 to the uninterrupted run's end."""
+    from lava_bridge_mj.eval.run_files import checkpoint_step
+
+    out = tmp_path / "run"
+    replace, writes = os.replace, []
+
+    def killed_at_the_third_checkpoint(source, target):
+        if os.path.basename(target) == "checkpoint.pt" and os.path.basename(source).startswith(".checkpoint.pt.tmp"):
+            writes.append(target)
+            if len(writes) == 3:
+                raise Killed
+        replace(source, target)
+
+    monkeypatch.setattr(os, "replace", killed_at_the_third_checkpoint)
+    with pytest.raises(Killed):
+        exit_code_in_process(arguments(config_file, out))
+    monkeypatch.setattr(os, "replace", replace)
+    latest, previous = out / "checkpoint.pt", out / "checkpoint.prev.pt"
+    assert not (latest.exists() and os.path.samefile(latest, previous))
+    assert torch.load(previous, weights_only=False)["step"] == 500
+    assert checkpoint_step(out) == 500  # what a sweep resumes this run from
+    resume_to_the_end(config_file, out)
+    assert metrics(out) == reference
+
+
+def running_process(pid):
+    """Whether process `pid` runs (a zombie no one has reaped yet does not)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="tells a running process by /proc")
+def test_the_result_folder_of_a_killed_sweep_is_removed_by_the_next(config_file, tmp_path, monkeypatch):
+    """SIGKILL of a sweep's own process leaves its folder of job results in the temporary directory; the
+    next sweep removes it, and leaves the folder of a sweep still running (this process) alone."""
+    from lava_bridge_mj.eval import sweep_jobs
+
+    temp = tmp_path / "tmp"
+    temp.mkdir()
+    argv = [sys.executable, "-m", "lava_bridge_mj.eval.sweep", "--methods", "sac", "--seeds", "0", "--steps", "1500",
+            "--config", str(config_file), "--out", str(tmp_path / "out"), "--workers", "1"]
+    sweep = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                             env={**os.environ, "TMPDIR": str(temp)})
+    started = next(line for line in sweep.stdout if "(pid " in line)
+    job = int(started.rsplit("(pid ", 1)[1].rstrip(")\n"))
+    sweep.kill()
+    sweep.communicate(timeout=60)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and running_process(job):  # it stops with its sweep
+        time.sleep(0.05)
+    left = [folder.name for folder in temp.iterdir()]
+    assert len(left) == 1 and left[0].startswith(f"lava-bridge-sweep-{sweep.pid}-"), left
+    running = temp / f"lava-bridge-sweep-{os.getpid()}-x"
+    running.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(temp))
+    sweep_jobs.run_local([], None, workers=1)
+    assert [folder.name for folder in temp.iterdir()] == [running.name]
+
+
+# --- metrics.csv is verified where it is read --------------------------------------------------------------
+def test_a_changed_metrics_csv_is_refused_by_the_reports_in_one_line(reference_run, tmp_path, capsys):
+    """The red team's edit: an evaluation's success_p0 raised from 0.0 to 0.9. report and summary refuse
+    it naming the file, export refuses to copy it; the run as written, and one without a checksum file
+    (written before checksums were kept, as the committed results/), read as before."""
+    from lava_bridge_mj.eval import summary
+
+    out = copy_of(reference_run, tmp_path)
+    assert summary.main([str(out)]) == 0
+    lines = (out / "metrics.csv").read_text().splitlines()
+    column, row = lines[0].split(",").index("success_p0"), lines[2].split(",")
+    assert row[0] == "500" and row[column] == "0.0"
+    row[column] = "0.9"
+    (out / "metrics.csv").write_text("\n".join([*lines[:2], ",".join(row), *lines[3:]]) + "\n")
+    capsys.readouterr()
+    for argv in (["report", str(out), "--out", str(tmp_path / "report")], ["summary", str(out)]):
+        assert cli.main(argv) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+        assert f"{out / 'metrics.csv'} does not match its checksum in metrics.csv.sha256" in err
+    assert not (tmp_path / "report").exists()
+    runs = tmp_path / "runs"
+    shutil.copytree(out, runs / "auxss" / "seed0")
+    assert cli.main(["export", str(runs), str(tmp_path / "results")]) == 1
+    assert "auxss/seed0: " in capsys.readouterr().out and not (tmp_path / "results" / "auxss").exists()
+    (out / "metrics.csv.sha256").unlink()  # a run written before checksums: unverified, read as it is
+    assert summary.main([str(out)]) == 0
+
+
+def test_a_kill_between_the_checksum_and_the_metrics_write_leaves_a_file_that_verifies(tmp_path, monkeypatch):
+    """The checksum file goes first and lists the version it replaces too: a kill before metrics.csv is
+    replaced leaves the earlier, whole metrics.csv, which still verifies; a changed one never does."""
+    from lava_bridge_mj.eval import checksums
+
+    path = tmp_path / "metrics.csv"
+    checksums.write_checked(path, b"step\n250\n")
+    write = checksums.atomic_write
+
+    def killed_before_the_file(target, *args, **kwargs):
+        if target == path:
+            raise Killed
+        write(target, *args, **kwargs)
+
+    monkeypatch.setattr(checksums, "atomic_write", killed_before_the_file)
+    with pytest.raises(Killed):
+        checksums.write_checked(path, b"step\n250\n500\n")
+    monkeypatch.setattr(checksums, "atomic_write", write)
+    assert checksums.read_checked(path) == b"step\n250\n"
+    checksums.write_checked(path, b"step\n250\n500\n")
+    assert checksums.read_checked(path) == b"step\n250\n500\n"
+    path.write_bytes(b"step\n250\n750\n")
+    with pytest.raises(checksums.DamagedFileError, match="metrics.csv does not match its checksum"):
+        checksums.read_checked(path)
+
+
+# --- messages ---------------------------------------------------------------------------------------------
+def test_a_run_directory_refused_in_python_names_the_keywords_that_continue_it(reference_run, tmp_path):
+    from lava_bridge_mj.eval.config import RunConfig
+    from lava_bridge_mj.eval.run_files import RunDirectoryError
+    from lava_bridge_mj.eval.runner import train
+
+    out = copy_of(reference_run, tmp_path)
+    with pytest.raises(RunDirectoryError, match=r"already holds a run .*resume=True.*overwrite=True"):
+        train(RunConfig.from_dict({**TINY, "method": "auxss"}), out, progress=False)
+
+
+def test_a_full_disk_at_the_first_write_names_the_lock_file(config_file, tmp_path):
+    """A file-size limit of one byte (EFBIG, as a full disk gives ENOSPC) fails the run's first write, its pid
+    into .lock: one line naming that file."""
+    import resource
+
+    out = tmp_path / "run"
+    result = subprocess.run(command(config_file, out), capture_output=True, text=True,
+                            preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (1, 1)))
+    assert result.returncode == 1, result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
+    assert f"cannot write {out / '.lock'}: File too large" in result.stderr
+    assert [p.name for p in out.iterdir()] == [".lock"]
+
+
+@pytest.mark.parametrize("option", ["--resume", "--overwrite"])
+def test_a_checkpoint_that_is_a_directory_is_named_as_one(config_file, reference_run, tmp_path, capsys, option):
+    out = copy_of(reference_run, tmp_path)
+    (out / "checkpoint.pt").unlink()
+    (out / "checkpoint.pt").mkdir()
+    kept = (out / "metrics.csv").read_text()
+    assert exit_code_in_process(arguments(config_file, out, option)) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "cannot write" not in err
+    assert f"{out / 'checkpoint.pt'} is a directory" in err
+    assert (out / "checkpoint.pt").is_dir() and (out / "metrics.csv").read_text() == kept

@@ -299,3 +299,16 @@ def test_video_into_a_read_only_run_directory_is_one_line(tiny_run, tmp_path, ca
     assert capsys.readouterr().err == (f"lava-bridge-bench video: error: --out {run_dir / 'rollouts.mp4'}: {run_dir} "
                                        "is not a writable directory\n")
     assert no_rendering == []
+
+
+def test_a_full_disk_under_ffmpeg_names_the_disk_full_reason(tmp_path, capsys):
+    """ffmpeg writing into /dev/full (the temporary name points there) fails as on a full disk: the one line
+    gives that reason (ENOSPC), not ffmpeg's last words ("Nothing was written into output file ...")."""
+    from lava_bridge_mj.eval import video
+
+    out = tmp_path / "e.mp4"
+    (tmp_path / f".e.partial{os.getpid()}.mp4").symlink_to("/dev/full")
+    assert video.main(["--expert", "--episodes", "1", "--max-steps", "3", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err == f"lava-bridge-bench video: error: cannot write {out}: No space left on device; nothing written\n"
+    assert list(tmp_path.iterdir()) == []
