@@ -26,6 +26,7 @@ import importlib.util
 import json
 import math
 import os
+import secrets
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -197,8 +198,8 @@ class TensorBoardSink:
 class WandbSink:
     """One W&B run per seed, in the project, entity and group of `settings` (wandb_settings(); group by
     default the configuration's label), named "NAME seed S" (NAME by default the label); its config is
-    `config` with the settings under "wandb". Files in DIRECTORY/wandb whatever WANDB_DIR says, so a
-    resume and --overwrite find them; `WANDB_MODE=offline` keeps them on disk for `wandb sync`. The same
+    `config` with the settings under "wandb". Files and the run's id (wandb/run_id) in DIRECTORY/wandb
+    whatever WANDB_DIR and WANDB_RUN_ID say, so a resume and --overwrite find them; `WANDB_MODE=offline` keeps them on disk for `wandb sync`. The same
     scalars as TensorBoard, the probabilities as a histogram and the rollouts as a video."""
 
     def __init__(self, directory: Path, config: dict[str, Any], label: str, settings: Mapping[str, str]):
@@ -208,10 +209,11 @@ class WandbSink:
         files = Path(directory) / "wandb"
         files.mkdir(parents=True, exist_ok=True)
         id_file = files / WANDB_ID_FILE
-        resumed = {"id": id_file.read_text().strip(), "resume": "allow"} if id_file.exists() else {}
+        # each seed's own id (never WANDB_RUN_ID, which would give every seed of a batch the same run)
+        run_id = id_file.read_text().strip() if id_file.exists() else secrets.token_hex(6)
         settings = {"group": label, **settings, "name": f"{settings.get('name', label)} seed {config['seed']}"}
         self.run = wandb.init(dir=str(files), config={**config, "wandb": settings}, reinit="create_new",
-                              **settings, **resumed)
+                              id=run_id, resume="allow", **settings)
         id_file.write_text(self.run.id)
 
     def log_training(self, step: int, scalars: Mapping[str, float]) -> None:

@@ -233,14 +233,19 @@ def test_wandb_settings_come_from_options_over_environment_variables_over_defaul
     monkeypatch.setenv("WANDB_PROJECT", "project-from-env")
     monkeypatch.setenv("WANDB_ENTITY", "entity-from-env")
     monkeypatch.setenv("WANDB_RUN_GROUP", "group-from-env")
+    monkeypatch.setenv("WANDB_RUN_ID", "same-for-all")  # not used: each seed's run needs its own id
     train([tmp_path / "api" / f"seed{seed}" for seed in (3, 4)], steps=100, seeds=[3, 4], log=("wandb",),
           wandb={"project": "project-option", "name": "trial"})
     expected = {"project": "project-option", "entity": "entity-from-env", "group": "group-from-env"}
+    ids = set()
     for seed in (3, 4):
         [(run, _)] = wandb_records(tmp_path / "api" / f"seed{seed}")
+        ids.add(run.run_id)
+        assert run.run_id == (tmp_path / "api" / f"seed{seed}" / "wandb" / tracking.WANDB_ID_FILE).read_text()
         assert (run.project, run.entity, run.run_group, run.display_name) == (*expected.values(), f"trial seed {seed}")
         config = {item.key: json.loads(item.value_json) for item in run.config.update}
         assert config["seed"] == seed and config["wandb"] == {**expected, "name": f"trial seed {seed}"}
+    assert len(ids) == 2 and "same-for-all" not in ids
     # the CLI's options, each over its variable
     monkeypatch.setenv("WANDB_NAME", "name-from-env")
     assert cli.main(["--method", "auxss", "--steps", "100", "--eval-every", "100", "--eval-episodes", "2",
