@@ -138,11 +138,11 @@ def open_sink(name: str, directory: Path, config: dict[str, Any], label: str, re
 
 
 def training_scalars(train: Mapping[str, float], episodes: Sequence[Sequence[float]],
-                     time: Mapping[str, float]) -> dict[str, float]:
+                     timing: Mapping[str, float]) -> dict[str, float]:
     """One seed's training scalars under SB3's names: `train` (the last update's statistics and JSRL's
     guide horizon) as train/NAME, alpha as train/ent_coef; the rollout/ means (ep_rew_mean, ep_len_mean,
     success_rate) of the last EPISODE_WINDOW of `episodes`, its episodes.csv rows (EPISODE_FIELDS;
-    none before an episode ends); `time` as time/NAME. Non-finite values are left out."""
+    none before an episode ends); `timing` as time/NAME. Non-finite values are left out."""
     from lava_bridge_mj.eval.run_files import EPISODE_FIELDS
 
     scalars = {f"train/{TRAIN_NAMES.get(name, name)}": value for name, value in train.items()}
@@ -150,7 +150,7 @@ def training_scalars(train: Mapping[str, float], episodes: Sequence[Sequence[flo
     if len(recent):
         for tag, field in (("ep_rew_mean", "return"), ("ep_len_mean", "length"), ("success_rate", "success")):
             scalars[f"rollout/{tag}"] = recent[:, EPISODE_FIELDS.index(field)].mean()
-    scalars.update({f"time/{name}": value for name, value in time.items()})
+    scalars.update({f"time/{name}": value for name, value in timing.items()})
     return _finite(scalars)
 
 
@@ -199,8 +199,9 @@ class WandbSink:
     """One W&B run per seed, in the project, entity and group of `settings` (wandb_settings(); group by
     default the configuration's label), named "NAME seed S" (NAME by default the label); its config is
     `config` with the settings under "wandb". Files and the run's id (wandb/run_id) in DIRECTORY/wandb
-    whatever WANDB_DIR and WANDB_RUN_ID say, so a resume and --overwrite find them; `WANDB_MODE=offline` keeps them on disk for `wandb sync`. The same
-    scalars as TensorBoard, the probabilities as a histogram and the rollouts as a video."""
+    whatever WANDB_DIR and WANDB_RUN_ID say, so a resume and --overwrite find them; `WANDB_MODE=offline`
+    keeps them on disk for `wandb sync`. The same scalars as TensorBoard, the probabilities as a
+    histogram and the rollouts as a video."""
 
     def __init__(self, directory: Path, config: dict[str, Any], label: str, settings: Mapping[str, str]):
         import wandb
