@@ -40,8 +40,8 @@ SINKS = ("tensorboard", "wandb")
 """The names `--log` accepts."""
 EXTRAS = {"tensorboard": "pip install 'lava-bridge-mj[tensorboard]'", "wandb": "pip install 'lava-bridge-mj[wandb]'"}
 TRAIN_LOG_EVERY = 1000
-"""Steps between two writes of the training scalars: TensorBoard costs well under 1% of training time
-at this interval (bench/tracking_cost.py measures it)."""
+"""Steps between two writes of the training scalars: at this interval TensorBoard costs about 0.05% of
+training time (bench/tracking_cost.py; docs/training.md gives the measurement)."""
 EPISODE_WINDOW = 100
 """rollout/ scalars average the last this many training episodes (SB3's stats_window_size)."""
 EVAL_COLUMNS = ("success_p0", "success_ood", "return_p0", "return_ood")
