@@ -107,13 +107,26 @@ def build_parser(prog: str = "lava-bridge-bench") -> argparse.ArgumentParser:
                              "option, not part of the configuration: provenance.json records it, and a run "
                              "continues on the device type it started on")
     parser.add_argument("--log", type=arguments.comma_list, default=(), metavar="SINKS",
-                        help="also log every evaluation live to tensorboard and/or wandb (comma-separated; "
-                             "each an optional extra): the metrics.csv scalars, the start strategy's "
+                        help="also log training and evaluations live to tensorboard and/or wandb "
+                             "(comma-separated; each an optional extra): training scalars every --log-every "
+                             "steps, each evaluation's success and return, the start strategy's "
                              "probabilities as a histogram, the videos of --log-videos; metrics.csv stays "
                              "the record")
     parser.add_argument("--log-videos", action="store_true",
                         help="render the policy's rollouts from p0 and ood at every evaluation to "
                              "videos/step_N.mp4 (and to the --log sinks)")
+    parser.add_argument("--log-every", type=arguments.positive_int, default=tracking.TRAIN_LOG_EVERY, metavar="N",
+                        help="write the training scalars (train/, rollout/, time/) to the --log sinks every N "
+                             f"steps (default: {tracking.TRAIN_LOG_EVERY}); evaluations go to eval/")
+    wandb = parser.add_argument_group("W&B, with --log wandb (each option beats its WANDB_* environment variable)")
+    wandb.add_argument("--wandb-project", metavar="PROJECT",
+                       help=f"the W&B project (default: $WANDB_PROJECT, else {tracking.WANDB_PROJECT})")
+    wandb.add_argument("--wandb-entity", metavar="ENTITY", help="the W&B entity (default: $WANDB_ENTITY, else "
+                                                                  "W&B's default entity)")
+    wandb.add_argument("--wandb-group", metavar="GROUP",
+                       help="the W&B group of the seeds' runs (default: $WANDB_RUN_GROUP, else 'METHOD on ENV')")
+    wandb.add_argument("--wandb-name", metavar="NAME", help="each seed's W&B run is named 'NAME seed S' (default: "
+                                                            "$WANDB_NAME, else 'METHOD on ENV')")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     return parser
 
@@ -148,6 +161,15 @@ def main(argv: list[str] | None = None) -> int:
         tracking.check_sinks(args.log)
     except ValueError as error:
         parser.error(f"--log: {error}")
+    wandb = {key: getattr(args, f"wandb_{key}") for key in tracking.WANDB_SETTINGS
+             if getattr(args, f"wandb_{key}") is not None}
+    if wandb and "wandb" not in args.log:
+        parser.error(f"--wandb-{next(iter(wandb))} needs --log wandb")
+    if "wandb" in args.log:
+        try:
+            tracking.wandb_settings(wandb)
+        except ValueError as error:
+            parser.error(f"--log wandb: {error}")
     seeds = args.seeds or [config.seed]
     try:  # before anything per seed: a million seeds' directories take minutes to check
         check_batch_fits(config, len(seeds))
@@ -175,7 +197,8 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         run = train(config, outs, seeds=seeds, resume=args.resume, overwrite=args.overwrite,
-                    progress=not args.no_progress, log=args.log, log_videos=args.log_videos, device=args.device)
+                    progress=not args.no_progress, log=args.log, log_videos=args.log_videos, log_every=args.log_every,
+                    wandb=wandb or None, device=args.device)
     except RunInterrupted as stop:
         print(f"lava-bridge-bench: {stop}; continue with: {resume_command(argv)}", file=sys.stderr)
         return 128 + stop.signum

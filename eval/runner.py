@@ -35,6 +35,7 @@ from lava_bridge_mj.agents.jsrl import JSRLGuide
 from lava_bridge_mj.agents.methods import METHODS, learner_class
 from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
 from lava_bridge_mj.agents.seed_batch import stack_batches
+from lava_bridge_mj.checks import check_integer
 from lava_bridge_mj.eval.config import RunConfig, check_batch_fits
 from lava_bridge_mj.eval.evaluate import EVAL_STARTS, MAX_EVAL_ENVS, evaluate
 from lava_bridge_mj.eval.provenance import code_provenance
@@ -42,7 +43,8 @@ from lava_bridge_mj.eval.run_files import (CHECKPOINTS, VIDEOS, DamagedFileError
                                            append_provenance, check_run_directory, check_strategy_unchanged,
                                            locked, read_checkpoint, remove_leftovers, remove_run, write_config)
 from lava_bridge_mj.eval.seed_run import SeedRun
-from lava_bridge_mj.eval.tracking import ProgressReport, check_sinks, open_sink
+from lava_bridge_mj.eval.tracking import (TRAIN_LOG_EVERY, ProgressReport, check_sinks, open_sink,
+                                          training_scalars, wandb_settings)
 from lava_bridge_mj.vector import LavaBridgeVectorEnv
 
 
@@ -122,6 +124,7 @@ class Run:
         self.active = np.ones(len(configs), dtype=bool)  # False: the seed diverged and stopped
         self.diverged: dict[int, int] = {}  # seed -> the step it stopped at
         self.sinks: list[list] = [[] for _ in configs]  # each seed's tracking sinks (eval/tracking.py)
+        self.log_every = TRAIN_LOG_EVERY  # steps between the sinks' training scalars
         self.video_env = None  # renders each evaluation's rollouts, when tracking asks for videos
 
     # single-seed conveniences
@@ -169,6 +172,7 @@ class Run:
             self.guide.fit(self.seed_runs[0].demos, getattr(config, config.jsrl.guide).batch_size)
             self.elapsed = time.perf_counter() - start_time
             self.save()  # the guide's training is not repeated by a resume
+        session = (self.step, time.perf_counter())  # where this session's loop began: the sinks' steps/s
         seeds = ", ".join(str(s) for s in self.agent.seeds)
         bar = tqdm(total=config.steps, initial=self.step, disable=progress is not True, unit="step",
                    desc=f"{config.method} seed{'s' if len(seed_runs) > 1 else ''} {seeds}", dynamic_ncols=True)
@@ -202,6 +206,8 @@ class Run:
                 stats = self.agent.update(stack_batches([s.sample() for s in seed_runs]))
                 for i in np.flatnonzero(self.active):
                     seed_runs[i].last_update = {name: float(values[i]) for name, values in stats.items()}
+            if self.step % self.log_every == 0 and any(self.sinks):
+                self._log_training(session, start_time)
             evaluation_due = self.step % config.eval_every == 0 or self.step == config.steps
             if evaluation_due:
                 self.elapsed = time.perf_counter() - start_time
@@ -226,6 +232,21 @@ class Run:
         bar.close()
         self.elapsed = time.perf_counter() - start_time
         self.save("final.pt")
+
+    def _log_training(self, session: tuple[int, float], start_time: float) -> None:
+        """Each active seed's training scalars to its sinks (eval/tracking.py): read from what the loop
+        keeps anyway, so logging changes nothing in training."""
+        now = time.perf_counter()
+        fps = (self.step - session[0]) / max(now - session[1], 1e-9)
+        for i in np.flatnonzero(self.active):
+            seed_run = self.seed_runs[i]
+            train = dict(seed_run.last_update)
+            if self.guide is not None:
+                train["guide_horizon"] = self.guide.curricula[i].horizon
+            scalars = training_scalars(train, seed_run.episode_log, {"fps": fps, "episodes": seed_run.episodes,
+                                                                     "time_elapsed": now - start_time})
+            for sink in self.sinks[i]:
+                sink.log_training(self.step, scalars)
 
     def _stop_diverged(self, mask: np.ndarray, reason: str) -> None:
         """Stop the seeds in `mask` whose networks diverged: they write nothing more (their files keep
@@ -279,9 +300,12 @@ class Run:
         return rows
 
     @contextmanager
-    def tracking(self, sinks: Sequence[str], videos: bool = False):
-        """Each seed logs its evaluations to `sinks` (eval/tracking.py) while the block runs, with the
+    def tracking(self, sinks: Sequence[str], videos: bool = False, log_every: int = TRAIN_LOG_EVERY,
+                 wandb: dict[str, str] | None = None):
+        """Each seed logs its training scalars every `log_every` steps and its evaluations to `sinks`
+        (eval/tracking.py; `wandb`: the W&B sink's wandb_settings()) while the block runs, with the
         rollouts of each evaluation as videos/step_N.mp4 when `videos`; closed however the block ends."""
+        self.log_every = check_integer("log_every", log_every, 1)
         if videos:
             import gymnasium
 
@@ -289,7 +313,8 @@ class Run:
         label = f"{self.config.method} on {self.config.env_id}"
         try:
             for i, seed_run in enumerate(self.seed_runs):
-                self.sinks[i] = [open_sink(name, seed_run.dir, seed_run.config.to_dict(), label) for name in sinks]
+                self.sinks[i] = [open_sink(name, seed_run.dir, seed_run.config.to_dict(), label, self.step, wandb)
+                                 for name in sinks]
             yield
         finally:
             for sink in (sink for seed_sinks in self.sinks for sink in seed_sinks):
@@ -376,7 +401,8 @@ class Run:
 
 def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seeds: Sequence[int] | None = None,
           resume: bool = False, overwrite: bool = False, progress: bool | str | Path = True, log: Sequence[str] = (),
-          log_videos: bool = False, device: str = "cpu") -> Run:
+          log_videos: bool = False, log_every: int = TRAIN_LOG_EVERY, wandb: dict[str, str] | None = None,
+          device: str = "cpu") -> Run:
     """Train `config` into `out_dir` and return the finished Run.
 
     With `seeds`, train those seeds of `config` together in one batch, seed seeds[i] into out_dir[i]
@@ -388,14 +414,20 @@ def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seed
 
     `progress`: a progress bar (True), none (False), or the path of a `ProgressReport` file (a sweep's jobs).
     `log` names live tracking sinks ("tensorboard", "wandb": eval/tracking.py) that each seed's
-    evaluations go to as well; `log_videos` writes each evaluation's rollouts from p0 and ood to
-    videos/step_N.mp4 (and to the sinks).
+    training scalars (every `log_every` steps) and evaluations go to as well; `log_videos` writes each
+    evaluation's rollouts from p0 and ood to videos/step_N.mp4 (and to the sinks). `wandb` sets the
+    W&B runs' {"project", "entity", "group", "name"} (over the WANDB_* environment variables; only
+    with the "wandb" sink).
 
     `device`: the torch device the learners train on ("cpu", "cuda", "cuda:N"); a run option like
     torch's thread count, not part of the configuration, so provenance.json records it per session.
     A run continues only on the device type it was trained on (agents/seed_batch.py).
     """
     log = check_sinks(log)
+    log_every = check_integer("log_every", log_every, 1)
+    if wandb is not None and "wandb" not in log:
+        raise ValueError(f"wandb settings {wandb!r} need the wandb sink: log=('wandb',)")
+    wandb = wandb_settings(wandb) if "wandb" in log else None
     check_batch_fits(config, 1 if seeds is None else len(seeds))
     if seeds is None:
         configs, dirs = [config], [Path(out_dir)]
@@ -437,6 +469,6 @@ def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seed
                 session = {"from_step": run.step, "to_step": config.steps, "started": started, "code": code,
                            "device": str(device), "strategy": seed_run.strategy_settings}
                 append_provenance(seed_run.dir, session, resume)
-        with run.tracking(log, log_videos):
+        with run.tracking(log, log_videos, log_every, wandb):
             run.train(progress=progress)
     return run

@@ -59,7 +59,8 @@ class LavaBridgeVectorEnv(VectorEnv):
         self.autoreset_mode = check_autoreset_mode(autoreset_mode)
         self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
         if "render_mode" in env_kwargs and env_kwargs["render_mode"] is not None:
-            raise ValueError("LavaBridgeVectorEnv does not render; render a single LavaBridgeEnv instead")
+            raise ValueError("LavaBridgeVectorEnv does not render; for frames use gymnasium.make_vec(..., "
+                             "vectorization_mode='sync', render_mode='rgb_array') or a single LavaBridgeEnv")
         env_kwargs.pop("render_mode", None)
         # the model, rewards, state checks, dynamics and start distributions that every sub-env shares
         self.task: LavaBridgeTask = check_env_arguments(**env_kwargs).task

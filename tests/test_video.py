@@ -53,6 +53,38 @@ def test_expert_video_records_successes(tmp_path):
     assert successes == {"ood": 1}
 
 
+def test_gymnasiums_record_video_wrapper_records_an_episode(tmp_path):
+    # needs moviepy, which the record-video extra (and test) installs
+    env = gymnasium.make(lava_bridge_mj.ENV_ID, render_mode="rgb_array", width=64, height=32, max_episode_steps=10)
+    folder = tmp_path / "videos"
+    env = gymnasium.wrappers.RecordVideo(env, str(folder), episode_trigger=lambda episode: True, name_prefix="lava")
+    try:
+        env.reset(seed=0)
+        ended = False
+        while not ended:
+            _, _, terminated, truncated, _ = env.step(np.zeros(2, dtype=np.float32))
+            ended = terminated or truncated
+    finally:
+        env.close()
+    assert [p.name for p in folder.iterdir()] == ["lava-episode-0.mp4"]
+    with imageio.get_reader(folder / "lava-episode-0.mp4") as reader:
+        assert reader.count_frames() >= 10 and reader.get_data(0).shape == (32, 64, 3)
+
+
+def test_the_native_vector_env_points_to_the_sync_vector_env_for_frames():
+    with pytest.raises(ValueError, match=r"does not render; for frames use gymnasium\.make_vec\(\.\.\., "
+                                         r"vectorization_mode='sync', render_mode='rgb_array'\)"):
+        gymnasium.make_vec(lava_bridge_mj.ENV_ID, num_envs=2, render_mode="rgb_array")
+    envs = gymnasium.make_vec(lava_bridge_mj.ENV_ID, num_envs=2, vectorization_mode="sync", render_mode="rgb_array",
+                              width=64, height=32)
+    try:
+        envs.reset(seed=[0, 1])
+        frames = envs.render()
+    finally:
+        envs.close()
+    assert [frame.shape for frame in frames] == [(32, 64, 3)] * 2
+
+
 def test_cli_video_flag_records_the_trained_policy(tmp_path, monkeypatch):
     calls = []
 
