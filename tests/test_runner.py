@@ -594,6 +594,24 @@ def test_a_diverged_seed_stops_alone_and_the_batch_trains_on(tmp_path, capsys, w
     assert (dirs[0] / "final.pt").exists() and not (dirs[1] / "final.pt").exists()
 
 
+def test_a_minibatch_that_cannot_fit_in_memory_is_refused_before_anything_is_written(tmp_path, capsys, monkeypatch):
+    """`--set sac.batch_size=1000000000 --set sac.learning_starts=0 --steps 50` passed, wrote config.json and
+    was killed by the kernel at about 22 GB. Here the memory available is 64 MiB, which a 2^18 minibatch
+    (twice 12 floats per transition, the twin critics' 16 + 16 activations) exceeds."""
+    import lava_bridge_mj.agents.checks as checks
+
+    out = tmp_path / "run"
+    monkeypatch.setattr(checks, "available_memory", lambda: 64 * 2**20)
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(["--method", "sac", "--set", "sac.hidden_sizes=[16, 16]", "--set", "sac.batch_size=262144",
+                  "--set", "sac.learning_starts=0", "--steps", "2", "--out", str(out), "--no-progress"])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "SACConfig.batch_size=262144 does not fit in memory: 1 seed needs at least 88.5 MiB" in err
+    assert "SACConfig.batch_size: 88.0 MiB" in err and err.endswith("more than the 64.0 MiB of memory available here\n")
+    assert not out.exists()
+
+
 def test_a_batch_or_buffer_that_cannot_fit_in_memory_is_refused_at_once(tmp_path, capsys, monkeypatch):
     """A million seeds, a 10^12-transition buffer or 100,000-unit layers used to run for minutes or end
     in MemoryError; the CLI refuses them before it checks any seed's run directory (a million of those
