@@ -173,6 +173,14 @@ def test_an_extension_stopped_short_of_its_budget_is_not_finished(finished_run, 
     assert torch.load(out / "final.pt", weights_only=False)["step"] == 500
 
 
+def test_a_resume_says_from_which_step_it_continues(finished_run, tmp_path, capsys):
+    out = copy_run(finished_run, tmp_path / "run")
+    train(tiny_config(steps=300), out, resume=True, progress=False)  # finished at its budget: nothing to resume
+    assert "resuming" not in capsys.readouterr().out
+    train(tiny_config(steps=400), out, resume=True, progress=False)
+    assert capsys.readouterr().out.startswith("auxss seed 3: resuming from step 300\n")
+
+
 def test_resume_refuses_a_checkpoint_of_another_configuration(finished_run, tmp_path):
     out = copy_run(finished_run, tmp_path / "run")
     with pytest.raises(ValueError, match="another configuration"):
