@@ -99,7 +99,8 @@ def format_seeds(seeds: Sequence[int]) -> str:
 
 MAX_JSON_DEPTH = 32
 """Most levels of JSON arrays and objects a --config file or a --set value may nest: a RunConfig nests
-three at most (env.decoys), and far deeper JSON overflows Python's recursion in the parser or later."""
+four at most (the config, env, its decoys, each decoy), and far deeper JSON overflows Python's recursion
+in the parser or later."""
 
 
 def nesting_depth(value: object) -> int:
@@ -119,7 +120,7 @@ class NestedTooDeep(ValueError):
 
     def __init__(self):
         super().__init__(f"it nests arrays and objects more than {MAX_JSON_DEPTH} levels deep (a RunConfig "
-                         "needs three at most)")
+                         "needs four at most)")
 
 
 def load_json(text: str) -> object:
