@@ -36,10 +36,14 @@ task-pictures: setup
 
 # The documentation site built with --strict first (a broken link, anchor or API reference fails it),
 # then two pytest workers (pytest-xdist), one per core; --dist loadfile keeps each test file in one
-# worker, so the runs a file's fixtures train once are shared by its tests, as in a serial run.
+# worker, so the runs a file's fixtures train once are shared by its tests, as in a serial run. Every
+# result is appended to TEST_LOG as its test finishes (pytest-reportlog), and on failure the failed tests
+# are printed from it: they are named even when pytest's controller dies before its own summary. The
+# exit status is pytest's.
+TEST_LOG := .pytest-results.jsonl
 test: setup browser
 	$(MKDOCS) build --strict
-	$(BIN)/python -m pytest -n 2 --dist loadfile
+	$(BIN)/python -m pytest -n 2 --dist loadfile --report-log=$(TEST_LOG) || { status=$$?; $(BIN)/python tests/failures.py $(TEST_LOG); exit $$status; }
 
 # The documentation site (mkdocs.yml) into site/: open site/index.html, or `$(MKDOCS) serve` to browse it live.
 docs: setup

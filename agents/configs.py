@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .checks import FLOAT_BYTES, check_hidden_sizes, check_integer, check_number
+from .checks import FLOAT_BYTES, check_hidden_sizes, check_integer, check_number, minibatch_floats
 
 
 @dataclass
@@ -63,13 +63,15 @@ class SACConfig:
 
     def memory_bytes(self, seeds: int, obs_dim: int, act_dim: int) -> dict[str, int]:
         """Bytes of the arrays `seeds` seeds of SAC hold, by the field that sizes them: each seed's replay
-        buffer (obs, action, reward, next_obs, terminated), and the networks: every trained parameter
-        with its gradient and two Adam moments, plus the target critics. For `check_fits_in_memory`."""
+        buffer (obs, action, reward, next_obs, terminated), its minibatch with the hidden activations the
+        twin critics keep for the critic loss's backward pass (two passes), and the networks: every trained parameter with its gradient and two Adam moments, plus
+        the target critics. For `check_fits_in_memory`."""
         from .networks import TanhGaussianActor, TwinQ, parameter_count  # imports torch
 
         actor = parameter_count(lambda: TanhGaussianActor(1, obs_dim, act_dim, self.hidden_sizes))
         critic = parameter_count(lambda: TwinQ(1, obs_dim, act_dim, self.hidden_sizes, self.critic_layer_norm))
         floats = {"buffer_size": self.buffer_size * (2 * obs_dim + act_dim + 2),
+                  "batch_size": minibatch_floats(self.batch_size, obs_dim, act_dim, self.hidden_sizes, 2),
                   "hidden_sizes": 4 * (actor + critic) + critic}
         return {field: seeds * FLOAT_BYTES * count for field, count in floats.items()}
 
@@ -91,12 +93,15 @@ class BCConfig:
         self.batch_size = check_integer("batch_size", self.batch_size, 1)
 
     def memory_bytes(self, seeds: int, obs_dim: int, act_dim: int) -> dict[str, int]:
-        """Bytes of `seeds` seeds' policies, each parameter with its gradient and two Adam moments
-        (the demo transitions are a few thousand); for `check_fits_in_memory`."""
+        """Bytes of `seeds` seeds' policies, each parameter with its gradient and two Adam moments, and
+        their minibatches with the hidden activations the policy keeps for the backward pass (the demo
+        transitions are a few thousand); for `check_fits_in_memory`."""
         from .networks import TanhGaussianActor, parameter_count  # imports torch
 
         actor = parameter_count(lambda: TanhGaussianActor(1, obs_dim, act_dim, self.hidden_sizes))
-        return {"hidden_sizes": seeds * FLOAT_BYTES * 4 * actor}
+        return {"batch_size": seeds * FLOAT_BYTES * minibatch_floats(self.batch_size, obs_dim, act_dim,
+                                                                      self.hidden_sizes, 1),
+                "hidden_sizes": seeds * FLOAT_BYTES * 4 * actor}
 
 
 @dataclass
@@ -134,13 +139,16 @@ class IQLConfig:
 
     def memory_bytes(self, seeds: int, obs_dim: int, act_dim: int) -> dict[str, int]:
         """Bytes of `seeds` seeds' networks: policy, twin critics and value network, each parameter
-        with its gradient and two Adam moments, plus the target critics; for `check_fits_in_memory`."""
+        with its gradient and two Adam moments, plus the target critics; and their minibatches with the
+        hidden activations the value network keeps for its loss's backward pass; for `check_fits_in_memory`."""
         from .networks import MLP, TanhGaussianActor, TwinQ, parameter_count  # imports torch
 
         actor = parameter_count(lambda: TanhGaussianActor(1, obs_dim, act_dim, self.hidden_sizes))
         critic = parameter_count(lambda: TwinQ(1, obs_dim, act_dim, self.hidden_sizes))
         value = parameter_count(lambda: MLP(1, obs_dim, 1, self.hidden_sizes))
-        return {"hidden_sizes": seeds * FLOAT_BYTES * (4 * (actor + critic + value) + critic)}
+        return {"batch_size": seeds * FLOAT_BYTES * minibatch_floats(self.batch_size, obs_dim, act_dim,
+                                                                      self.hidden_sizes, 1),
+                "hidden_sizes": seeds * FLOAT_BYTES * (4 * (actor + critic + value) + critic)}
 
 
 @dataclass

@@ -115,6 +115,7 @@ def find_runs(root: str | Path, budget: float | None = None, seeds: Collection[i
         for key, kind, what in (("seed", int, "an integer"), ("demos", int, "an integer"), ("method", str, "a name")):
             if key in config and (not isinstance(config[key], kind) or isinstance(config[key], bool)):
                 raise ValueError(f"{config_file}: {key} must be {what}, got {config[key]!r}")
+        _check_run_config(config, config_file)
         rows = read_metrics(directory)
         if budget is not None:
             rows = [row for row in rows if row["step"] <= budget]
@@ -128,6 +129,23 @@ def find_runs(root: str | Path, budget: float | None = None, seeds: Collection[i
                           "".join(f" ({task}: seeds {sorted(kept)})" for task, kept in (task_seeds or {}).items())])
         raise ValueError(f"{root} holds no run directory (config.json with metrics.csv){chosen} at any depth")
     return runs
+
+
+def _check_run_config(config: dict[str, Any], config_file: Path) -> None:
+    """ValueError naming `config_file` unless its config names a known method (every run's config.json
+    does) and, where it has them, evaluation episodes in RunConfig's range: what the report reads and
+    counts by. Not the whole RunConfig check, which builds the task's env for each of many runs."""
+    from lava_bridge_mj.checks import check_integer
+    from lava_bridge_mj.eval.config import MAX_EVAL_EPISODES, METHODS
+
+    if config.get("method") not in METHODS:
+        found = f"unknown method {config['method']!r}" if "method" in config else "no method"
+        raise ValueError(f"{config_file}: {found}; expected one of {', '.join(METHODS)}")
+    if "eval_episodes" in config:
+        try:
+            check_integer("eval_episodes", config["eval_episodes"], 1, MAX_EVAL_EPISODES)
+        except ValueError as error:
+            raise ValueError(f"{config_file}: {error}") from None
 
 
 def demos_label(demos: int) -> str:

@@ -1,15 +1,18 @@
 """What lava-bridge-bench's commands share (training, sweep, report, video): argument types with
-one-line usage errors (integers, seeds, seed lists, devices), --config files, output paths, and SIGTERM
-handled like Ctrl-C. Light: no training code is imported."""
+one-line usage errors (integers, seeds, seed lists, devices, thread counts), --config files and --set
+values, output paths, and SIGINT / SIGTERM turned into one exception that says which signal came.
+Light: no training code is imported."""
 
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import signal
 import threading
 from collections import Counter
 from collections.abc import Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 from lava_bridge_mj.eval.atomic import nearest_existing
@@ -94,14 +97,54 @@ def format_seeds(seeds: Sequence[int]) -> str:
     return ",".join(parts)
 
 
+MAX_JSON_DEPTH = 32
+"""Most levels of JSON arrays and objects a --config file or a --set value may nest: a RunConfig nests
+four at most (the config, env, its decoys, each decoy), and far deeper JSON overflows Python's recursion
+in the parser or later."""
+
+
+def nesting_depth(value: object) -> int:
+    """How many levels of lists and dicts `value` nests (0 for a number or a string), counted level by
+    level without recursion, so any depth can be measured."""
+    depth, level = 0, [value]
+    while True:
+        containers = [item for item in level if isinstance(item, (dict, list))]
+        if not containers:
+            return depth
+        depth += 1
+        level = [child for item in containers for child in (item.values() if isinstance(item, dict) else item)]
+
+
+class NestedTooDeep(ValueError):
+    """JSON that nests arrays and objects deeper than MAX_JSON_DEPTH levels."""
+
+    def __init__(self):
+        super().__init__(f"it nests arrays and objects more than {MAX_JSON_DEPTH} levels deep (a RunConfig "
+                         "needs four at most)")
+
+
+def load_json(text: str) -> object:
+    """`text` parsed as JSON; ValueError if it is not JSON, NestedTooDeep if it nests deeper than
+    MAX_JSON_DEPTH levels."""
+    try:
+        value = json.loads(text)
+    except RecursionError:  # the parser's own limit, far beyond MAX_JSON_DEPTH
+        raise NestedTooDeep from None
+    if nesting_depth(value) > MAX_JSON_DEPTH:
+        raise NestedTooDeep
+    return value
+
+
 def read_config_file(path: Path | None, parser: argparse.ArgumentParser) -> dict:
     """The RunConfig fields of a --config JSON file ({} without one); a usage error if it is unreadable."""
     if path is None:
         return {}
     try:
-        values = json.loads(path.read_text())
+        values = load_json(path.read_text())
     except OSError as error:
         parser.error(f"--config {path} cannot be read: {error.strerror}")
+    except NestedTooDeep as error:
+        parser.error(f"--config {path}: {error}")
     except ValueError as error:
         parser.error(f"--config {path} is not valid JSON: {error}")
     if not isinstance(values, dict):
@@ -123,8 +166,13 @@ def setting(text: str) -> tuple[list[str], object]:
     if not equals or not all(path):
         raise argparse.ArgumentTypeError(f"expected KEY=VALUE with a dotted RunConfig field, such as sac.lr=1e-3 "
                                          f"or strategy.sigma=0.2, got {text!r}")
+    if len(path) > MAX_JSON_DEPTH:
+        raise argparse.ArgumentTypeError(f"expected a dotted RunConfig field of at most {MAX_JSON_DEPTH} names, got "
+                                         f"{len(path)} ({key.strip()[:40]}...)")
     try:
-        return path, json.loads(value)
+        return path, load_json(value)
+    except NestedTooDeep as error:
+        raise argparse.ArgumentTypeError(f"the value of {key.strip()}: {error}") from None
     except ValueError:
         return path, value
 
@@ -159,16 +207,64 @@ def directory(text: str) -> Path:
 
 
 def check_writable(out: Path, parser: argparse.ArgumentParser) -> None:
-    if out.exists() and not out.is_dir():
-        parser.error(f"--out {out} exists and is not a directory")
-    existing = nearest_existing(out)
+    """A usage error unless directory `out` exists or can be made, and can be written."""
+    try:
+        if out.exists() and not out.is_dir():
+            parser.error(f"--out {out} exists and is not a directory")
+        existing = nearest_existing(out)
+    except OSError as error:  # a name longer than the filesystem allows, a path too long, ...
+        parser.error(f"--out {out} cannot be used: {error.strerror or error}")
     if not existing.is_dir() or not os.access(existing, os.W_OK | os.X_OK):
         parser.error(f"--out {out} cannot be written: {existing} is not a writable directory")
 
 
+def usable_cpus() -> int:
+    """The CPUs this process may run on (its affinity mask on Linux, else the machine's)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+class Interrupted(KeyboardInterrupt):
+    """What `raise_keyboard_interrupt` raises: a KeyboardInterrupt that says which signal it was."""
+
+    def __init__(self, signum: int = signal.SIGINT):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def signal_of(stop: KeyboardInterrupt) -> int:
+    """The signal behind a KeyboardInterrupt: Interrupted's, else SIGINT (Python's own Ctrl-C handler)."""
+    return getattr(stop, "signum", signal.SIGINT)
+
+
+def stop_reason(signum: int) -> str:
+    """How messages say what stopped a command: SIGINT is the user's Ctrl-C (or `kill -INT`), any other
+    signal is named."""
+    return "interrupted by the user (SIGINT)" if signum == signal.SIGINT else f"stopped by {signal.Signals(signum).name}"
+
+
 def raise_keyboard_interrupt(signum, frame):
     """A signal handler: SIGTERM stops a command the way Ctrl-C does (its cleanup runs, nothing half-written)."""
-    raise KeyboardInterrupt
+    raise Interrupted(signum)
+
+
+@contextmanager
+def stopping_on_signals():
+    """While the block runs, SIGINT and SIGTERM raise Interrupted (main thread only; the handlers
+    before it are restored after). SIGINT is set explicitly too: a process a script starts in the
+    background inherits SIGINT ignored, Python then leaves it ignored, and Ctrl-C or `kill -INT` would
+    be lost. Commands enter it first thing, so a signal during their start-up stops them too."""
+    if not in_main_thread():
+        yield
+        return
+    previous = {sig: signal.signal(sig, raise_keyboard_interrupt) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def in_main_thread() -> bool:

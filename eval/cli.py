@@ -30,7 +30,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import lava_bridge_mj  # noqa: E402
 from lava_bridge_mj.agents.methods import METHODS as METHOD_SPECS  # noqa: E402
 from lava_bridge_mj.eval import arguments, tracking  # noqa: E402
-from lava_bridge_mj.eval.config import METHODS, RunConfig, check_batch_fits  # noqa: E402
+from lava_bridge_mj.eval.config import METHODS, ConfigurationError, RunConfig, check_batch_fits  # noqa: E402
 from lava_bridge_mj.eval.run_files import run_files  # noqa: E402
 
 DEFAULTS = RunConfig()
@@ -98,9 +98,10 @@ def build_parser(prog: str = "lava-bridge-bench") -> argparse.ArgumentParser:
     parser.add_argument("--video", action="store_true",
                         help="after training, write rollouts.mp4 of the policy from p0 and ood")
     parser.add_argument("--threads", type=arguments.positive_int, default=1,
-                        help="torch CPU threads (default: 1). 1 avoids oversubscription when runs share cores "
-                             "and keeps a seed's numbers independent of the seeds batched with it; 2 speeds "
-                             "up a large --seeds batch on an otherwise idle 2-core machine")
+                        help="torch CPU threads, at most the CPUs this process may use (default: 1). 1 avoids "
+                             "oversubscription when runs share cores and keeps a seed's numbers independent of "
+                             "the seeds batched with it; 2 speeds up a large --seeds batch on an otherwise idle "
+                             "2-core machine")
     parser.add_argument("--device", type=arguments.device, default="cpu",
                         help="torch device the networks train on: cpu (default) or cuda / cuda:N where this "
                              "machine has one; the envs, buffers and start strategies stay on the CPU. A run "
@@ -154,6 +155,17 @@ def main(argv: list[str] | None = None) -> int:
         return importlib.import_module(COMMANDS[argv[0]]).main(argv[1:]) or 0
     elif argv and not argv[0].startswith("-"):
         return unknown_command(argv[0])
+    with arguments.stopping_on_signals():  # before any start-up work: a signal then stops it too
+        try:
+            return _train_command(argv, prog)
+        except KeyboardInterrupt as stop:  # while loading, before training touched any run directory
+            signum = arguments.signal_of(stop)
+            print(f"lava-bridge-bench: {arguments.stop_reason(signum)} during start-up, before anything was "
+                  "written; run the same command again to start", file=sys.stderr)
+            return 128 + signum
+
+
+def _train_command(argv: list[str], prog: str) -> int:
     parser = build_parser(prog)
     args = parser.parse_args(argv)
     config = _config_from(args, parser)
@@ -170,6 +182,8 @@ def main(argv: list[str] | None = None) -> int:
             tracking.wandb_settings(wandb)
         except ValueError as error:
             parser.error(f"--log wandb: {error}")
+    if args.threads > arguments.usable_cpus():  # more threads than CPUs only compete (and may exhaust the machine's)
+        parser.error(f"--threads {args.threads}: this machine lets the run use {arguments.usable_cpus()} CPUs")
     seeds = args.seeds or [config.seed]
     try:  # before anything per seed: a million seeds' directories take minutes to check
         check_batch_fits(config, len(seeds))
@@ -202,6 +216,12 @@ def main(argv: list[str] | None = None) -> int:
     except RunInterrupted as stop:
         print(f"lava-bridge-bench: {stop}; continue with: {resume_command(argv)}", file=sys.stderr)
         return 128 + stop.signum
+    except KeyboardInterrupt as stop:  # before the loop's first checkpoint, or a second signal in it
+        print(f"lava-bridge-bench: {arguments.stop_reason(arguments.signal_of(stop))}; files already written are "
+              f"intact; continue with: {resume_command(argv)}", file=sys.stderr)
+        return 128 + arguments.signal_of(stop)
+    except ConfigurationError as error:  # a start strategy's parameter out of range: the user's input
+        parser.error(f"{arguments.config_source(args)}: {error}")
     except ValueError as error:  # a directory is in use or holds another run, a foreign checkpoint, ...
         print(f"lava-bridge-bench: error: {error}", file=sys.stderr)
         return 2
@@ -219,20 +239,30 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{config.method} seed {seed}: {last['step']} steps, success p0 "
               f"{last['success_p0']:.2f}, ood {last['success_ood']:.2f} -> {seed_run.dir}")
     if args.video:
-        import gymnasium
-
-        from lava_bridge_mj.eval import video
-
-        env = gymnasium.make(config.env_id, render_mode="rgb_array", **config.env)
         try:
-            for i, seed_run in enumerate(run.seed_runs):
-                if seed_run.config.seed in run.diverged:
-                    continue
-                video.record_rollouts(env, run.policy(i), seed_run.dir / "rollouts.mp4")
-                print(f"wrote {seed_run.dir / 'rollouts.mp4'}")
-        finally:
-            env.close()
+            write_videos(run, config)
+        except KeyboardInterrupt as stop:
+            print(f"lava-bridge-bench: {arguments.stop_reason(arguments.signal_of(stop))} while writing the videos; "
+                  "the runs are finished", file=sys.stderr)
+            return 128 + arguments.signal_of(stop)
     return 1 if run.diverged else 0
+
+
+def write_videos(run, config: RunConfig) -> None:
+    """rollouts.mp4 of each seed's policy from p0 and ood, in its run directory (not for diverged seeds)."""
+    import gymnasium
+
+    from lava_bridge_mj.eval import video
+
+    env = gymnasium.make(config.env_id, render_mode="rgb_array", **config.env)
+    try:
+        for i, seed_run in enumerate(run.seed_runs):
+            if seed_run.config.seed in run.diverged:
+                continue
+            video.record_rollouts(env, run.policy(i), seed_run.dir / "rollouts.mp4")
+            print(f"wrote {seed_run.dir / 'rollouts.mp4'}")
+    finally:
+        env.close()
 
 
 def unknown_command(name: str) -> int:

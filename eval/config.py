@@ -22,11 +22,19 @@ AGENT_CONFIGS = {"sac": SACConfig, "bc": BCConfig, "iql": IQLConfig, "jsrl": JSR
 """RunConfig's nested hyperparameter sections."""
 MAX_SEED = 2**32 - 1
 """Seeds are 32-bit: what every RNG here (numpy's, torch's, MuJoCo's) takes without overflow."""
+MAX_STEPS = 10**12
+"""Most training steps (and steps between evaluations) a run may ask for: years of training at this
+suite's few thousand steps per second, so a larger number is a typo, not a budget."""
 MAX_EVAL_EPISODES = 1000
 """Evaluation keeps one env per episode; 1,000 already gives a success rate to within about 0.03."""
 RUNNER_STRATEGY_PARAMS = ("env", "episode_ids")
 """Start-strategy parameters that the runner supplies and a config cannot: the probe env of Omega-SS's
 rollouts and the candidates' own demo episode ids."""
+
+
+class ConfigurationError(ValueError):
+    """A value of a RunConfig that only building the run can check (a start strategy's parameter out of
+    its range): `train` raises it before anything is written; a usage error where the user gave it."""
 
 
 @dataclasses.dataclass
@@ -81,8 +89,8 @@ class RunConfig:
                     raise ValueError(f"{name}.{error}") from None
         if not isinstance(self.method, str) or self.method not in METHOD_SPECS:
             raise ValueError(f"unknown method {self.method!r}; expected one of {METHODS}")
-        for name, minimum in (("steps", 1), ("eval_every", 1), ("demo_subset", 1)):
-            setattr(self, name, check_integer(name, getattr(self, name), minimum))
+        for name, maximum in (("steps", MAX_STEPS), ("eval_every", MAX_STEPS), ("demo_subset", None)):
+            setattr(self, name, check_integer(name, getattr(self, name), 1, maximum))
         self.seed = check_integer("seed", self.seed, 0, MAX_SEED)
         self.eval_episodes = check_integer("eval_episodes", self.eval_episodes, 1, MAX_EVAL_EPISODES)
         self.hybrid_fraction = check_number("hybrid_fraction", self.hybrid_fraction, 0, 1, low_inclusive=True)

@@ -36,6 +36,7 @@ from lava_bridge_mj.agents.methods import METHODS, learner_class
 from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
 from lava_bridge_mj.agents.seed_batch import stack_batches
 from lava_bridge_mj.checks import check_integer
+from lava_bridge_mj.eval.arguments import Interrupted, format_seeds, stop_reason
 from lava_bridge_mj.eval.config import RunConfig, check_batch_fits
 from lava_bridge_mj.eval.evaluate import EVAL_STARTS, MAX_EVAL_ENVS, evaluate
 from lava_bridge_mj.eval.provenance import code_provenance
@@ -52,7 +53,7 @@ class RunInterrupted(Exception):
     """SIGINT or SIGTERM stopped training; a checkpoint was written first, so --resume continues."""
 
     def __init__(self, signum: int, step: int):
-        super().__init__(f"stopped by {signal.Signals(signum).name} at step {step} after writing a checkpoint")
+        super().__init__(f"{stop_reason(signum)} at step {step} after writing a checkpoint")
         self.signum, self.step = signum, step
 
 
@@ -152,7 +153,7 @@ class Run:
 
         def request_stop(signum, frame):
             if self.stop_signal is not None:
-                raise KeyboardInterrupt
+                raise Interrupted(signum)
             self.stop_signal = signum
 
         previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
@@ -165,6 +166,8 @@ class Run:
     def _train(self, progress: bool | Path) -> None:
         config, seed_runs = self.config, self.seed_runs
         report = ProgressReport(progress, self.step, config.steps) if isinstance(progress, (str, Path)) else None
+        if report is not None:
+            report.write(self.step, force=True)  # at once: a sweep says where a resumed job starts
         online = self.method.online
         learning_starts = config.sac.learning_starts if online else 0
         start_time = time.perf_counter() - self.elapsed
@@ -456,6 +459,9 @@ def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seed
             run.resume()
             for seed_run in run.seed_runs if run.step > 0 else ():  # a run restarted from 0 changes nothing
                 check_strategy_unchanged(seed_run.dir, seed_run.strategy_settings)
+            if 0 < run.step < config.steps:
+                print(f"{config.method} seed{'s' if len(configs) > 1 else ''} {format_seeds(run.agent.seeds)}: "
+                      f"resuming from step {run.step:,}", flush=True)
         for seed_config, directory in zip(configs, dirs):
             if run.step < config.steps:
                 # the final.pt of a smaller budget goes before config.json names the larger one: else an

@@ -18,7 +18,7 @@ from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
 from lava_bridge_mj.agents.reverse_curriculum import goal_reaching_demos
 from lava_bridge_mj.agents.start_state_wrapper import StartSelector
 from lava_bridge_mj.agents.start_strategies import StrategyContext, make_start_strategy
-from lava_bridge_mj.eval.config import RunConfig
+from lava_bridge_mj.eval.config import ConfigurationError, RunConfig
 from lava_bridge_mj.eval.run_files import CHECKPOINT_VERSION, POLICIES, save_checkpoint, save_torch, write_results
 from lava_bridge_mj.vector import LavaBridgeVectorEnv
 
@@ -53,9 +53,13 @@ class SeedRun:
         context = StrategyContext.from_env(probe, config.seed, envs.max_episode_steps, episode_ids,
                                            budget=config.steps)
         start = self.method.start
-        self.strategy = make_start_strategy(start, None if start == "p0" else self.states, context, **config.strategy)
+        try:  # the strategy checks its parameters' values: the config's checks name only the parameters
+            self.strategy = make_start_strategy(start, None if start == "p0" else self.states, context,
+                                                **config.strategy)
+            self.selector = StartSelector(self.strategy, config.seed, max_episode_steps=envs.max_episode_steps)
+        except ValueError as error:
+            raise ConfigurationError(f"strategy: {error}") from None
         self.envs, self.index = envs, index
-        self.selector = StartSelector(self.strategy, config.seed, max_episode_steps=envs.max_episode_steps)
         self.buffer = ReplayBuffer(config.sac.buffer_size, 4, 2)
         self.demos = demos  # the demo transitions, shared read-only by the batch (None: the method uses none)
         self.rng = np.random.default_rng(config.seed)  # warm-up actions and minibatch indices

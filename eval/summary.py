@@ -1,6 +1,6 @@
 """Summarise run directories as a Markdown table: one row per seed, then the batch.
 
-    python -m lava_bridge_mj.eval.summary runs/calib/auxss_lava0 [more directories ...]
+    lava-bridge-bench summary runs/calib/auxss_lava0 [more directories ...]
 
 Each directory is a run directory (holding metrics.csv) or holds run directories one level down (a
 --seeds batch). Per seed: the first evaluation step with success from p0 >= the threshold (0.8, the
@@ -308,7 +308,7 @@ def _pooled(episodes: list[tuple[int, float]]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m lava_bridge_mj.eval.summary", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="lava-bridge-bench summary", description=__doc__.splitlines()[0])
     parser.add_argument("dirs", nargs="+", type=Path, help="run directories or directories of them")
     parser.add_argument("--threshold", type=float, default=THRESHOLD,
                         help="p0 success that counts as solved, in [0, 1] (default: %(default)s)")

@@ -25,10 +25,12 @@ skipped, an unfinished one resumes from its checkpoints, and a directory holding
 configuration is an error of its job, never overwritten. A failing job (a configuration its method
 rejects, a foreign run directory, a crash) is reported and the other jobs go on. OUT/sweep.json
 records the arguments and every job's status, error and wall time, rewritten atomically as jobs
-finish; each job's output goes to OUT/logs/JOB.log. Ctrl-C (or SIGTERM) asks every running job to
-write a checkpoint and stop (a second Ctrl-C kills them); the same command then resumes. A local job
-also stops that way when the sweep's process dies without asking (SIGKILL, a crash): it never trains on
-as an orphan. A rerun that finds a run directory still locked by such a stopping job waits for it (at
+finish; each job's output goes to OUT/logs/JOB.log, and a job that resumes its runs says from which
+step. A job whose batch cannot fit in the memory available here is refused before anything is written.
+Ctrl-C (or SIGTERM) asks every running job to write a checkpoint and stop, passing on the signal, so
+the record says the user interrupted it (a second Ctrl-C kills them); the same command then resumes.
+A local job also stops that way when the sweep's process dies without asking (SIGKILL, a crash): it
+never trains on as an orphan. A rerun that finds a run directory still locked by such a stopping job waits for it (at
 most LOCK_WAIT seconds) instead of failing the job.
 
 This module holds the command and the job plan; eval/sweep_jobs.py runs one job and the local worker
@@ -40,18 +42,16 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
-import signal
 import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
 import lava_bridge_mj
-from lava_bridge_mj.eval.arguments import (apply_settings, check_writable, config_source, in_main_thread,
-                                           device, parse_seeds, positive_int, raise_keyboard_interrupt,
-                                           read_config_file, setting)
-from lava_bridge_mj.eval.config import METHODS, RunConfig
+from lava_bridge_mj.eval.arguments import (apply_settings, check_writable, config_source, device, directory,
+                                           parse_seeds, positive_int, read_config_file, setting, signal_of,
+                                           stop_reason, stopping_on_signals, usable_cpus)
+from lava_bridge_mj.eval.config import METHODS, RunConfig, check_batch_fits
 from lava_bridge_mj.eval import sweep_ray
 from lava_bridge_mj.eval.run_files import lock_holder
 from lava_bridge_mj.eval.sweep_jobs import Job, SweepRecord, run_local, summary
@@ -176,7 +176,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--set", dest="settings", type=setting, action="append", metavar="KEY=VALUE",
                         help="one RunConfig field by its dotted name, over --config (e.g. --set sac.lr=1e-3); "
                              "as in training")
-    parser.add_argument("--out", type=Path, required=True, help="directory of the sweep's runs")
+    parser.add_argument("--out", type=directory, required=True, help="directory of the sweep's runs")
     parser.add_argument("--progress-every", type=float, default=PROGRESS_EVERY, metavar="SECONDS",
                         help="print one line per running local job (step, steps/s, ETA, latest success) every "
                              "this many seconds; 0: never (default: %(default)g)")
@@ -199,14 +199,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _local_cpus() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not Linux
-        return os.cpu_count() or 1
-
-
 def main(argv: list[str] | None = None) -> int:
+    with stopping_on_signals():  # before any start-up work: a signal then stops the sweep too
+        try:
+            return _main(argv)
+        except KeyboardInterrupt as stop:  # during start-up: once jobs run, _sweep records the stop
+            print(f"lava-bridge-bench sweep: {stop_reason(signal_of(stop))} during start-up; no job started",
+                  file=sys.stderr, flush=True)
+            return 128 + signal_of(stop)
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.address is not None and args.backend != "ray":
@@ -239,16 +242,16 @@ def main(argv: list[str] | None = None) -> int:
     if not configs:  # wrong for every method: a usage error, not a sweep of failures
         parser.error(next(iter(rejected.values())))
 
-    if args.backend == "local" and args.threads > _local_cpus():
-        parser.error(f"--threads {args.threads}: this machine lets the sweep use {_local_cpus()} CPUs")
+    if args.backend == "local" and args.threads > usable_cpus():
+        parser.error(f"--threads {args.threads}: this machine lets the sweep use {usable_cpus()} CPUs")
     if args.backend == "ray":
         try:
             workers = sweep_ray.start(args.address, args.threads,
-                                      args.workers or (_local_cpus() if args.address is None else None))
+                                      args.workers or (usable_cpus() if args.address is None else None))
         except sweep_ray.RayUnavailable as error:
             return _error(str(error))
     else:
-        workers = args.workers or _local_cpus()
+        workers = args.workers or usable_cpus()
     try:
         return _sweep(args, argv, workers, configs, rejected)
     finally:
@@ -259,6 +262,12 @@ def main(argv: list[str] | None = None) -> int:
 def _sweep(args: argparse.Namespace, argv, workers: int, configs: dict, rejected: dict) -> int:
     out = args.out
     jobs = plan(args.methods, args.demos, args.seeds, workers, args.seeds_per_job, args.envs)
+    for group, config in configs.items():  # each job's batch alone, before anything is written
+        largest = max(len(job.seeds) for job in jobs if (job.env_id, job.method, job.demos) == group)
+        try:
+            check_batch_fits(config, largest)
+        except ValueError as error:
+            return _error(f"{config.method} on {config.env_id} ({config.demos} demos): {error}; nothing written")
     try:
         (out / "logs").mkdir(parents=True, exist_ok=True)
     except OSError as error:
@@ -295,13 +304,7 @@ def _sweep(args: argparse.Namespace, argv, workers: int, configs: dict, rejected
     print(f"sweep: {len(jobs)} jobs, {sum(len(job.seeds) for job in jobs)} runs; {len(todo)} jobs to run on "
           f"{args.backend} with {workers} worker(s) x {args.threads} torch thread(s)", flush=True)
 
-    previous = {}
-    if args.backend == "local" and in_main_thread():
-        # SIGTERM stops the sweep as Ctrl-C does. SIGINT is set explicitly too (as the training CLI
-        # does): a process a script starts in the background inherits SIGINT ignored, and Python
-        # then leaves it ignored, so Ctrl-C or `kill -INT` would not stop the sweep
-        previous = {sig: signal.signal(sig, raise_keyboard_interrupt) for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
+    try:  # SIGINT and SIGTERM raise KeyboardInterrupt here (main's stopping_on_signals)
         if args.backend == "ray":
             sweep_ray.run_ray(todo, record)
         else:
@@ -310,8 +313,6 @@ def _sweep(args: argparse.Namespace, argv, workers: int, configs: dict, rejected
     except KeyboardInterrupt:
         record.status = "interrupted"
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
         record.write()
     print(summary(record), flush=True)
     if record.status == "interrupted":

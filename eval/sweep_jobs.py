@@ -21,7 +21,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 import lava_bridge_mj
-from lava_bridge_mj.eval.arguments import format_seeds
+from lava_bridge_mj.eval.arguments import format_seeds, signal_of, stop_reason, stopping_on_signals
 from lava_bridge_mj.eval.atomic import atomic_write_text, process_alive
 from lava_bridge_mj.eval.config import RunConfig
 from lava_bridge_mj.eval.run_files import DamagedFileError, checkpoint_step, read_config, run_status
@@ -140,6 +140,9 @@ def run_job(job: Job, config_values: dict, out: str | Path, threads: int = 1, pr
             result["status"] = "skipped"
     except RunInterrupted as stop:
         result.update(status="interrupted", error="; ".join([*errors, str(stop)]))
+    except KeyboardInterrupt as stop:  # a signal while loading, or a second one that skips the checkpoint
+        result.update(status="interrupted", error="; ".join([*errors, f"{stop_reason(signal_of(stop))} outside "
+                                                             "the training loop; its runs keep their last checkpoints"]))
     except Exception as error:  # noqa: BLE001 - reported in the result, never raised
         traceback.print_exc()
         result.update(status="failed", error="; ".join([*errors, f"{type(error).__name__}: {error}"]))
@@ -157,9 +160,10 @@ def run_spec(spec: dict) -> dict:
 def job_main(spec_json: str, result_file: str, sweep_pid: int | None = None) -> None:
     """A local worker process: run one job, write its result (JSON) to `result_file`. With
     `sweep_pid`, the job stops (checkpoint first) when that process, its parent, dies."""
-    if sweep_pid is not None:
-        die_with_parent(sweep_pid)
-    atomic_write_text(result_file, json.dumps(run_spec(json.loads(spec_json))))
+    with stopping_on_signals():  # a signal while the job loads stops it too, with a result that says so
+        if sweep_pid is not None:
+            die_with_parent(sweep_pid)
+        atomic_write_text(result_file, json.dumps(run_spec(json.loads(spec_json))))
 
 
 def die_with_parent(parent_pid: int, poll_interval: float = 1.0, use_prctl: bool = True) -> None:
@@ -244,11 +248,14 @@ class SweepRecord:
 def run_local(todo: list[tuple[int, dict]], record: SweepRecord, workers: int, progress_every: float = 0.0) -> None:
     """Run the jobs in at most `workers` worker processes at a time, each a fresh Python process (so a
     crash, even a segfault, fails only its job), printing one progress line per running job every
-    `progress_every` seconds (0: never). KeyboardInterrupt: stop them, then re-raise."""
+    `progress_every` seconds (0: never), and a line when a job resumes its runs from a checkpoint.
+    KeyboardInterrupt: pass its signal (SIGINT for Ctrl-C) on to the running jobs, which checkpoint and
+    stop, then re-raise."""
     env = {**os.environ, **worker_environment(todo[0][1]["threads"])} if todo else {}
     queue, running = list(todo), {}
     last_progress = time.perf_counter()
     remove_stale_result_folders()
+    sessions: dict[int, int] = {}  # job index -> the step its latest training session began at
     with tempfile.TemporaryDirectory(prefix=f"{RESULT_FOLDER}{os.getpid()}-") as results:
         try:
             while queue or running:
@@ -281,14 +288,19 @@ def run_local(todo: list[tuple[int, dict]], record: SweepRecord, workers: int, p
                     running[index] = (process, result_file, spec)
                     record.update(index, status="running")
                     print(f"started {record.jobs[index]['job']} (pid {process.pid})", flush=True)
+                for index, (_, _, spec) in running.items():
+                    began = read_progress(Path(spec["progress"])).get("started_at")
+                    if began and began != sessions.get(index):  # a session that resumed a run
+                        sessions[index] = began
+                        print(f"  {record.jobs[index]['job']}: resuming from step {began:,}", flush=True)
                 for index in [i for i, (process, *_) in running.items() if process.poll() is not None]:
                     _finish(record, index, *running.pop(index))
                 time.sleep(0.1)
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as stop:
             print(f"stopping {len(running)} running job(s): each writes a checkpoint first "
                   "(Ctrl-C again to kill them at once)", file=sys.stderr, flush=True)
             for process, *_ in running.values():
-                process.send_signal(signal.SIGTERM)
+                process.send_signal(signal_of(stop))
             try:
                 for process, *_ in running.values():
                     process.wait()
@@ -336,12 +348,19 @@ def without_result(spec: dict, status: str, error: str) -> dict:
     return {"status": status, "error": error}
 
 
+def read_progress(path: Path) -> dict:
+    """A job's progress file (tracking.ProgressReport); {} before it has one."""
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):  # not written yet (the job is loading), or replaced while read
+        return {}
+
+
 def progress_line(job: str, path: Path) -> str:
     """`  JOB: step 12,000/100,000 (12%), 95 steps/s, ETA 13m 41s, p0 0.40, ood 0.20` from the job's
     progress file; `  JOB: starting` before it has one."""
-    try:
-        report = json.loads(path.read_text())
-    except (OSError, ValueError):  # not written yet (the job is loading), or replaced while read
+    report = read_progress(path)
+    if not report:
         return f"  {job}: starting"
     step, steps, rate = report["step"], report["steps"], report["rate"]
     eta = f"ETA {_duration((steps - step) / rate)}" if rate > 0 else "ETA -"

@@ -60,8 +60,9 @@ WANDB_ID_FILE = "run_id"
 
 class ProgressReport:
     """A JSON file that says how far a training session is (step, steps, steps/s since the session
-    began, mean success from p0 and ood at the last evaluation), replaced atomically at most every
-    `every` seconds and at each evaluation: what a sweep reads to print its jobs' progress."""
+    began, mean success from p0 and ood at the last evaluation, and the step it began at: `started_at`,
+    above 0 for a session that resumed a run), replaced atomically at most every `every` seconds and at
+    each evaluation: what a sweep reads to print its jobs' progress."""
 
     def __init__(self, path: str | Path, step: int, steps: int, every: float = 5.0):
         self.path, self.steps, self.every = Path(path), steps, every
@@ -77,7 +78,7 @@ class ProgressReport:
             return
         self.last = now
         rate = (step - self.first_step) / max(now - self.started, 1e-9)
-        record = {"step": step, "steps": self.steps, "rate": rate,
+        record = {"step": step, "steps": self.steps, "rate": rate, "started_at": self.first_step,
                   "success_p0": self.success and self.success[0], "success_ood": self.success and self.success[1]}
         atomic_write_text(self.path, json.dumps(record))
 

@@ -94,8 +94,10 @@ class Layout:
     gear: float = 4.0
     """Force (N) per unit of action on each axis."""
     timestep: float = 0.01
-    """MuJoCo integration step (s). At 0.01 s a ball at top speed moves 4 cm per step, less than its
-    radius, so it never ends a step with its centre inside a wall."""
+    """MuJoCo integration step (s). At 0.01 s a ball at top speed moves 4 cm per step along an axis, less
+    than its radius, so it never ends a step with its centre inside a wall (every wall and lava pit is
+    axis-aligned). A timestep of ball_radius / top_speed or more is refused: the ball could then pass
+    through walls, lava and goal within one step."""
     frame_skip: int = 10
     """Physics steps per env step; the control period is timestep * frame_skip."""
     bridge_path: tuple[tuple[float, float], ...] = ()
@@ -142,6 +144,15 @@ class Layout:
                 raise ValueError(f"Layout.{name} must be a positive finite number, got {value!r}")
         if isinstance(self.frame_skip, bool) or not (isinstance(self.frame_skip, int) and self.frame_skip >= 1):
             raise ValueError(f"Layout.frame_skip must be an integer >= 1, got {self.frame_skip!r}")
+        # MuJoCo's Euler step damps implicitly, v' = (m v + h F) / (m + h c): from any speed up to F / c it
+        # stays at most F / c, whatever the mass, so one physics step moves the ball at most h F / c per axis
+        limit = self.ball_radius / self.top_speed
+        if self.timestep >= limit:
+            raise ValueError(
+                f"Layout.timestep={self.timestep:g} lets the ball move {self.timestep * self.top_speed:g} m in one "
+                f"physics step at its top speed gear / damping = {self.top_speed:g} m/s, not less than its radius "
+                f"{self.ball_radius:g} m, so it could pass through walls and lava: timestep must be below "
+                f"ball_radius * damping / gear = {limit:g} s")
         if self.bridge_width <= 2 * self.ball_radius:
             raise ValueError(
                 f"Layout.bridge_width={self.bridge_width} leaves no room for a ball of radius "

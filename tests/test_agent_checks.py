@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 import re
 
 import numpy as np
@@ -109,12 +110,15 @@ def test_check_number_and_check_integer():
 
 
 # --- memory ---------------------------------------------------------------------------------------
-def test_sac_memory_estimate_counts_its_buffer_and_its_networks_with_gradients_and_adam_moments():
-    # 64-64 networks on 4-d observations and 2-d actions: actor 4,740 parameters, twin critics 9,346
+def test_sac_memory_estimate_counts_its_buffer_minibatch_and_networks_with_gradients_and_adam_moments():
+    # 64-64 networks on 4-d observations and 2-d actions: actor 4,740 parameters, twin critics 9,346;
+    # a transition is 12 floats, the minibatch is held twice, and each twin critic keeps 64 + 64 activations
     config = SACConfig()
     assert config.memory_bytes(seeds=1, obs_dim=4, act_dim=2) == {
-        "buffer_size": 10_000 * 12 * 4, "hidden_sizes": (4 * (4_740 + 9_346) + 9_346) * 4}
+        "buffer_size": 10_000 * 12 * 4, "batch_size": 256 * (2 * 12 + 2 * 128) * 4,
+        "hidden_sizes": (4 * (4_740 + 9_346) + 9_346) * 4}
     assert config.memory_bytes(seeds=5, obs_dim=4, act_dim=2)["hidden_sizes"] == 5 * 262_760
+    assert config.memory_bytes(seeds=5, obs_dim=4, act_dim=2)["batch_size"] == 5 * 286_720
 
 
 def test_memory_estimates_match_what_the_agents_allocate():
@@ -148,10 +152,10 @@ def test_a_configuration_that_cannot_fit_is_refused_naming_the_field_the_estimat
         check_fits_in_memory(config, seeds=5, obs_dim=4, act_dim=2, memory=8 * 2**30)
     assert str(error.value) == (
         "SACConfig.buffer_size=1000000000000 does not fit in memory: 5 seeds need at least 218.3 TiB "
-        "(SACConfig.buffer_size: 218.3 TiB, SACConfig.hidden_sizes: 1.3 MiB), more than the 8.0 GiB of "
-        "physical memory here")
+        "(SACConfig.buffer_size: 218.3 TiB, SACConfig.batch_size: 1.4 MiB, SACConfig.hidden_sizes: 1.3 MiB), more "
+        "than the 8.0 GiB of memory available here")
     with pytest.raises(ValueError, match=r"^SACConfig\.hidden_sizes=\(100000, 100000\) does not fit in memory: "
-                                         r"1 seed needs at least 521\.6 GiB"):
+                                         r"1 seed needs at least 522\.0 GiB"):
         check_fits_in_memory(SACConfig(hidden_sizes=[100_000, 100_000]), seeds=1, obs_dim=4, act_dim=2,
                              memory=8 * 2**30)
 
@@ -164,5 +168,72 @@ def test_the_estimate_is_compared_with_the_memory_given_or_the_machines():
         check_fits_in_memory(sac, iql, seeds=3, obs_dim=4, act_dim=2, memory=need - 1)  # the larger share named
     assert isinstance(physical_memory(), int) and physical_memory() > 2**20
     check_fits_in_memory(sac, seeds=5, obs_dim=4, act_dim=2)  # the defaults fit on any machine
-    with pytest.raises(ValueError, match=r"more than the [0-9.]+ [GT]iB of physical memory here$"):
+    with pytest.raises(ValueError, match=r"more than the [0-9.]+ [GT]iB of memory available here$"):
         check_fits_in_memory(SACConfig(buffer_size=10**12), seeds=5, obs_dim=4, act_dim=2)
+
+
+# One update at a large minibatch, in a fresh process: how far its peak resident memory rises above the
+# memory in use before it (Linux: the peak, VmHWM, reset to the current use through /proc/self/clear_refs)
+UPDATE_PEAK = """
+import sys
+import numpy as np, torch
+from lava_bridge_mj.agents.methods import learner_class
+from lava_bridge_mj.agents.offline import BCConfig, IQLConfig
+from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
+from lava_bridge_mj.agents.sac import SACConfig
+from lava_bridge_mj.agents.seed_batch import stack_batches
+torch.set_num_threads(1)
+learner, batch_size = sys.argv[1], int(sys.argv[2])
+config = {"sac": SACConfig, "bc": BCConfig, "iql": IQLConfig}[learner](batch_size=batch_size, hidden_sizes=(64, 64))
+agent = learner_class(learner)(4, 2, config, seeds=[0])
+buffer, rng = ReplayBuffer(100, 4, 2), np.random.default_rng(0)
+for _ in range(100):
+    buffer.add(rng.random(4), rng.uniform(-1, 1, 2), 0.0, rng.random(4), False)
+agent.update(stack_batches([buffer.sample(8, rng)]))  # optimiser state and torch's own start-up first
+
+def kib(name):
+    with open("/proc/self/status") as status:
+        return int(next(line for line in status if line.startswith(name + ":")).split()[1])
+
+with open("/proc/self/clear_refs", "w") as clear:
+    clear.write("5")  # the peak resident set starts again from the current one
+before = kib("VmRSS")
+agent.update(stack_batches([buffer.sample(batch_size, rng)]))
+print((kib("VmHWM") - before) * 1024, config.memory_bytes(1, 4, 2)["batch_size"])
+"""
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/clear_refs"), reason="measures peak memory through /proc")
+@pytest.mark.parametrize("learner", ["sac", "bc", "iql"])
+def test_the_minibatch_estimate_is_a_lower_bound_of_what_one_update_allocates(learner):
+    """The minibatch size allocates (the transitions and every network's activations over them): a
+    batch_size of 10^9 passed the check and was killed by the kernel at 22 GB. Its estimate must stay
+    below what an update really takes, so that nothing that could run is refused."""
+    import subprocess
+    import sys
+
+    batch_size = 2**16
+    done = subprocess.run([sys.executable, "-c", UPDATE_PEAK, learner, str(batch_size)], capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    grown, estimate = map(int, done.stdout.split())
+    assert estimate >= batch_size * (2 * 12) * 4  # at least the two copies of the transitions
+    assert estimate <= grown, f"estimate {estimate / 2**20:.0f} MiB above the {grown / 2**20:.0f} MiB measured"
+
+
+def test_a_minibatch_that_cannot_fit_is_refused_naming_batch_size():
+    for config in (SACConfig(batch_size=10**9), BCConfig(batch_size=10**9), IQLConfig(batch_size=10**9)):
+        with pytest.raises(ValueError, match=rf"^{type(config).__name__}\.batch_size=1000000000 does not fit in "
+                                             r"memory: 1 seed needs at least 1\.\d TiB"):
+            check_fits_in_memory(config, seeds=1, obs_dim=4, act_dim=2, memory=16 * 2**30)
+
+
+def test_the_check_reads_the_memory_available_now(monkeypatch):
+    import lava_bridge_mj.agents.checks as checks
+
+    available = checks.available_memory()
+    assert isinstance(available, int) and 2**20 < available <= physical_memory()
+    need = sum(SACConfig().memory_bytes(1, 4, 2).values())
+    monkeypatch.setattr(checks, "available_memory", lambda: need - 1)  # the machine's memory is mostly in use
+    with pytest.raises(ValueError, match=r"more than the [0-9.]+ KiB of memory available here$"):
+        check_fits_in_memory(SACConfig(), seeds=1, obs_dim=4, act_dim=2)

@@ -2,6 +2,7 @@
 and `--set` overrides of single RunConfig fields, checked like a config file."""
 
 import json
+import os
 
 import pytest
 
@@ -58,13 +59,68 @@ def test_set_overrides_single_fields_over_the_config_file_and_options_over_both(
     ("strategy.sigmaa=0.2", "--set: unknown parameters ['sigmaa'] for start strategy 'auxss'"),
     ("sac", "argument --set: expected KEY=VALUE with a dotted RunConfig field"),
     ("sac..lr=1", "argument --set: expected KEY=VALUE"),
-    ("steps=many", "--set: steps must be an integer >= 1, got 'many'"),
+    ("steps=many", "--set: steps must be an integer in [1, 1000000000000], got 'many'"),
+    # values only the start strategy checks: they reach it, and come back as a usage error of --set
+    ("strategy.sigma=abc", "--set: strategy: sigma must be a finite number > 0, got 'abc'"),
+    ("strategy.delta=2", "--set: strategy: delta must be a number in (0, 1], got 2"),
+    ("env.timestep=10", "--set: env: Layout.timestep=10 lets the ball move 40 m in one physics step"),
+    ("strategy.sigma=" + "[" * 5000 + "]" * 5000, "argument --set: the value of strategy.sigma: it nests arrays "
+                                                     "and objects more than 32 levels deep"),
+    ("strategy.sigma=" + "[" * 5000, "argument --set: the value of strategy.sigma: it nests"),
+    (".".join(["sac"] * 5000) + "=1", "argument --set: expected a dotted RunConfig field of at most 32 names, "
+                                      "got 5000"),
 ])
 def test_a_bad_set_is_one_usage_line_and_writes_nothing(setting, message, tmp_path, capsys):
     with pytest.raises(SystemExit) as stop:
-        cli.main(["--method", "auxss", "--set", setting, "--out", str(tmp_path / "run")])
+        cli.main(["--method", "auxss", "--set", setting, "--out", str(tmp_path / "run"), "--no-progress"])
     assert stop.value.code == 2
-    assert message in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert message in err
+    assert err.startswith("usage: lava-bridge-bench") and len(err.split("error: ")) == 2 and "Traceback" not in err
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("command", ["train", *cli.COMMANDS])
+def test_every_command_calls_itself_by_its_cli_name(command, capsys):
+    with pytest.raises(SystemExit):
+        cli.main([command, "--help"])
+    assert capsys.readouterr().out.startswith(f"usage: lava-bridge-bench {command} ")
+
+
+def test_threads_are_capped_at_the_cpus_as_the_sweep_caps_them(tmp_path, capsys):
+    """--threads 100000 once held about 13,500 threads, made other processes fail to start theirs and
+    segfaulted at exit."""
+    with pytest.raises(SystemExit) as stop:
+        cli.main(["--method", "auxss", "--threads", "100000", "--out", str(tmp_path / "run")])
+    assert stop.value.code == 2
+    assert f"--threads 100000: this machine lets the run use {len(os.sched_getaffinity(0))} CPUs" in \
+        capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--steps", str(10**30)], "steps must be an integer in [1, 1000000000000], got 10000000000000000000000000000"),
+    (["--eval-every", str(10**13)], "eval_every must be an integer in [1, 1000000000000], got 10000000000000"),
+    (["--out", "a" * 300], "cannot be used: File name too long"),
+    (["--out", "a" * 300 + "/run"], "cannot be used: File name too long"),
+])
+def test_absurd_sizes_and_unusable_paths_are_one_usage_line(argv, message, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as stop:
+        cli.main(["--method", "auxss", "--no-progress", *argv])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_config_file_nested_thousands_deep_is_one_usage_line(tmp_path, capsys):
+    path = tmp_path / "deep.json"
+    path.write_text('{"strategy": {"sigma": ' + "[" * 5000 + "]" * 5000 + "}}")
+    with pytest.raises(SystemExit) as stop:
+        cli.main(["--method", "auxss", "--config", str(path), "--out", str(tmp_path / "run")])
+    assert stop.value.code == 2
+    assert f"--config {path}: it nests arrays and objects more than 32 levels deep" in capsys.readouterr().err
     assert not (tmp_path / "run").exists()
 
 

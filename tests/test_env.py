@@ -627,6 +627,35 @@ def test_layout_physics_fields_reach_the_model():
     assert env.observation_space.high[2] == 4.0
 
 
+@pytest.mark.parametrize("physics", [{"timestep": 10.0}, {"timestep": 1.0}, {"timestep": 0.0125}, {"gear": 5.0},
+                                     {"damping": 0.79}, {"ball_radius": 0.04}])
+def test_physics_that_let_one_step_move_the_ball_its_radius_are_refused(physics):
+    """At timestep=10 one step with action [1, 0] put the ball at x = 391.6 m, through walls, lava and
+    goal. A physics step may move the ball less than its radius at its top speed gear / damping:
+    0.0125 s is the limit of the default gear 4, damping 1 and radius 0.05."""
+    message = r"^Layout\.timestep=[0-9.]+ lets the ball move .* timestep must be below ball_radius \* damping / gear = "
+    with pytest.raises(ValueError, match=message):
+        gymnasium.make("LavaBridge-v0", **physics)
+    with pytest.raises(ValueError, match=message):
+        lava_bridge_mj.LavaBridgeVectorEnv(2, **physics)
+    gymnasium.make("LavaBridge-v0", **{**physics, "timestep": 0.99 * physics.get("ball_radius", 0.05)
+                                       * physics.get("damping", 1.0) / physics.get("gear", 4.0)}).close()
+
+
+@pytest.mark.parametrize("mass", [0.01, 1.0, 100.0])
+def test_one_physics_step_moves_the_ball_at_most_timestep_times_the_top_speed_whatever_its_mass(mass):
+    """The fact the timestep limit rests on: MuJoCo's Euler step damps implicitly, v' = (m v + h F) / (m + h c),
+    so from the top speed F / c under full force the speed stays F / c for any mass, and a step moves
+    the ball h F / c per axis: just under its radius at a timestep just under the limit."""
+    env = gymnasium.make("LavaBridge-v0", ball_mass=mass, timestep=0.0124, frame_skip=8).unwrapped
+    env.reset(options={"state": [-3.0, 0.0, 4.0, -4.0]})
+    env.data.ctrl[:] = [1.0, -1.0]
+    mujoco.mj_step(env.model, env.data)
+    assert env.data.qpos - [-3.0, 0.0] == pytest.approx([0.0124 * 4.0, -0.0124 * 4.0], rel=1e-12)
+    assert np.abs(env.data.qvel).tolist() == pytest.approx([4.0, 4.0], rel=1e-12)
+    assert (np.abs(env.data.qpos - [-3.0, 0.0]) < env.layout.ball_radius).all()
+
+
 # --- rendering ---------------------------------------------------------------------------------------
 def world_to_pixel(env: LavaBridgeEnv, x: float, y: float) -> tuple[int, int]:
     """The top camera is orthographic at the origin: pixels per metre = height / fovy on both axes."""

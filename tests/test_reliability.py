@@ -158,10 +158,41 @@ def test_a_signal_stops_cleanly_with_a_checkpoint_and_resume_continues(config_fi
         process.send_signal(sig)
         _, stderr = process.communicate(timeout=60)
         assert process.returncode == 128 + sig, stderr
+        reason = "interrupted by the user (SIGINT)" if sig == signal.SIGINT else "stopped by SIGTERM"
+        assert f"lava-bridge-bench: {reason} at step " in stderr, stderr
         assert "after writing a checkpoint" in stderr and "--resume" in stderr
         assert checkpoint_mtime(out) != before, f"the stop by {sig.name} did not write a fresh checkpoint"
     resume_to_the_end(config_file, out)
     assert metrics(out) == reference
+
+
+def caught_signals(pid):
+    """The signals process `pid` has handlers for (Linux: SigCgt of /proc/PID/status)."""
+    with open(f"/proc/{pid}/status") as status:
+        mask = int(next(line for line in status if line.startswith("SigCgt:")).split()[1], 16)
+    return {sig for sig in signal.Signals if mask >> (sig - 1) & 1}
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="reads the process's signal handlers from /proc")
+@pytest.mark.parametrize("inherited", ["ignored", "default"])
+def test_a_signal_during_start_up_stops_the_run_in_one_line(config_file, tmp_path, inherited):
+    """SIGINT while the command still loads (here: as soon as it has its handlers, before torch). Launched
+    in the background from a script, it inherits SIGINT ignored, and the signal used to be lost: it
+    trained to the end with exit 0. From a terminal, a Ctrl-C in its first seconds printed a traceback."""
+    out = tmp_path / "run"
+    ignore = (lambda: signal.signal(signal.SIGINT, signal.SIG_IGN)) if inherited == "ignored" else None
+    process = subprocess.Popen(command(config_file, out), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True, preexec_fn=ignore)
+    deadline = time.monotonic() + 120
+    while {signal.SIGINT, signal.SIGTERM} - caught_signals(process.pid):
+        assert process.poll() is None and time.monotonic() < deadline, process.communicate()
+        time.sleep(0.005)
+    process.send_signal(signal.SIGINT)
+    stdout, stderr = process.communicate(timeout=120)
+    assert process.returncode == 130, stdout + stderr
+    assert stderr == ("lava-bridge-bench: interrupted by the user (SIGINT) during start-up, before anything was "
+                      "written; run the same command again to start\n")
+    assert not out.exists()
 
 
 def test_a_second_process_cannot_write_a_run_directory_in_use(config_file, tmp_path, capsys):

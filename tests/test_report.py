@@ -637,18 +637,27 @@ def test_a_read_only_run_directory_is_one_line(tmp_path, capsys):
                    f"{tmp_path / 'runs'} is not a writable directory\n")
 
 
+DELETED = object()
+"""A config.json entry removed rather than changed."""
+
+
 @pytest.mark.parametrize("change, message", [
     ({"seed": "abc"}, "seed must be an integer, got 'abc'"),
     ({"demos": None}, "demos must be an integer, got None"),
     ({"method": 5}, "method must be a name, got 5"),
     ({"env": {"bridge_length": "long"}}, "its env settings make no maze"),
     ({"env": [1, 2]}, "its env settings make no maze"),
+    # these used to end in a KeyError traceback, or to be reported as if they were fine
+    ({"method": "ppo"}, "unknown method 'ppo'; expected one of sac, auxss, "),
+    ({"method": DELETED}, "no method; expected one of sac, auxss, "),
+    ({"eval_episodes": -3}, "eval_episodes must be an integer in [1, 1000], got -3"),
 ])
 def test_a_config_the_report_cannot_use_is_one_line_naming_it(tmp_path, capsys, change, message):
     two_auxss_runs(tmp_path / "runs")
     for seed in (1, 0):  # the maze is drawn from one of them, in the env settings of its run
         config = tmp_path / "runs" / f"seed{seed}" / "config.json"
-        config.write_text(json.dumps({**json.loads(config.read_text()), **change}))
+        values = {**json.loads(config.read_text()), **change}
+        config.write_text(json.dumps({key: value for key, value in values.items() if value is not DELETED}))
     assert report.main([str(tmp_path / "runs"), "--reps", "50", "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "config.json" in err and message in err, err

@@ -173,6 +173,14 @@ def test_an_extension_stopped_short_of_its_budget_is_not_finished(finished_run, 
     assert torch.load(out / "final.pt", weights_only=False)["step"] == 500
 
 
+def test_a_resume_says_from_which_step_it_continues(finished_run, tmp_path, capsys):
+    out = copy_run(finished_run, tmp_path / "run")
+    train(tiny_config(steps=300), out, resume=True, progress=False)  # finished at its budget: nothing to resume
+    assert "resuming" not in capsys.readouterr().out
+    train(tiny_config(steps=400), out, resume=True, progress=False)
+    assert capsys.readouterr().out.startswith("auxss seed 3: resuming from step 300\n")
+
+
 def test_resume_refuses_a_checkpoint_of_another_configuration(finished_run, tmp_path):
     out = copy_run(finished_run, tmp_path / "run")
     with pytest.raises(ValueError, match="another configuration"):
@@ -592,6 +600,24 @@ def test_a_diverged_seed_stops_alone_and_the_batch_trains_on(tmp_path, capsys, w
     assert "warning: seed 1 stopped at step" in capsys.readouterr().err
     assert metrics_without_wall_time(dirs[0]) == metrics_without_wall_time(alone)
     assert (dirs[0] / "final.pt").exists() and not (dirs[1] / "final.pt").exists()
+
+
+def test_a_minibatch_that_cannot_fit_in_memory_is_refused_before_anything_is_written(tmp_path, capsys, monkeypatch):
+    """`--set sac.batch_size=1000000000 --set sac.learning_starts=0 --steps 50` passed, wrote config.json and
+    was killed by the kernel at about 22 GB. Here the memory available is 64 MiB, which a 2^18 minibatch
+    (twice 12 floats per transition, the twin critics' 16 + 16 activations) exceeds."""
+    import lava_bridge_mj.agents.checks as checks
+
+    out = tmp_path / "run"
+    monkeypatch.setattr(checks, "available_memory", lambda: 64 * 2**20)
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(["--method", "sac", "--set", "sac.hidden_sizes=[16, 16]", "--set", "sac.batch_size=262144",
+                  "--set", "sac.learning_starts=0", "--steps", "2", "--out", str(out), "--no-progress"])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "SACConfig.batch_size=262144 does not fit in memory: 1 seed needs at least 88.5 MiB" in err
+    assert "SACConfig.batch_size: 88.0 MiB" in err and err.endswith("more than the 64.0 MiB of memory available here\n")
+    assert not out.exists()
 
 
 def test_a_batch_or_buffer_that_cannot_fit_in_memory_is_refused_at_once(tmp_path, capsys, monkeypatch):

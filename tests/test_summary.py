@@ -177,7 +177,7 @@ def test_summary_of_a_damaged_run_is_one_line_naming_the_file(tmp_path, capsys, 
     out, err = capsys.readouterr()
     assert out == ""
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
-    assert err.startswith("python -m lava_bridge_mj.eval.summary: error: ") and str(broken) in err
+    assert err.startswith("lava-bridge-bench summary: error: ") and str(broken) in err
 
 
 @pytest.mark.parametrize("argv, message", [
@@ -197,7 +197,7 @@ def test_summary_of_a_missing_directory_or_a_file(tmp_path, capsys):
     for path in (tmp_path / "nowhere", tmp_path / "seed0" / "metrics.csv"):
         assert summary.main([str(path)]) == 2
         err = capsys.readouterr().err
-        assert err == f"python -m lava_bridge_mj.eval.summary: error: {path} is not a directory\n"
+        assert err == f"lava-bridge-bench summary: error: {path} is not a directory\n"
 
 
 def test_curriculum_stall_counts_how_the_episodes_from_the_last_starts_ended_by_hand(tmp_path):

@@ -359,7 +359,7 @@ def test_a_worker_that_dies_without_a_result_fails_only_its_job(config_file, tmp
         assert job["status"] == "failed" and "code 3" in job["error"] and "boom" in job["error"]
 
 
-def test_ctrl_c_stops_the_jobs_after_a_checkpoint(config_file, tmp_path):
+def test_ctrl_c_stops_the_jobs_after_a_checkpoint_and_the_rerun_says_where_it_resumes(config_file, tmp_path, capsys):
     out = tmp_path / "out"
     # started as a script's background job is (`cmd &`): SIGINT inherited ignored; the sweep must still stop on it
     process = subprocess.Popen([sys.executable, "-m", "lava_bridge_mj.eval.sweep",
@@ -382,8 +382,14 @@ def test_ctrl_c_stops_the_jobs_after_a_checkpoint(config_file, tmp_path):
     assert process.returncode == 130, output
     job = record(out)["jobs"][0]
     assert record(out)["status"] == "interrupted" and job["status"] == "interrupted", job
-    assert "after writing a checkpoint" in job["error"]
+    # the job is told what the sweep was told: the user's Ctrl-C, not a SIGTERM of unknown origin
+    assert re.fullmatch(r"interrupted by the user \(SIGINT\) at step \d+ after writing a checkpoint", job["error"]), job
+    assert "SIGTERM" not in output
     assert not (checkpoint.parent / "final.pt").exists()
+    # the rerun says where the job's run continues
+    step = checkpoint_step(checkpoint.parent)
+    assert sweep.main(tiny_argv(out, config_file, "sac", "0", step + 10)) == 0
+    assert f"  sac-d500 seeds 0: resuming from step {step:,}\n" in capsys.readouterr().out
 
 
 # --- Ray ---------------------------------------------------------------------------------------------
@@ -453,6 +459,43 @@ def test_usage_errors_exit_2_and_write_nothing(change, message, config_file, tmp
     assert exit_.value.code == 2
     assert message in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("out, message", [
+    ("", "argument --out: expected a directory, got ''"),  # once swept into the current directory
+    ("a" * 300, "cannot be used: File name too long"),
+    ("a" * 300 + "/out", "cannot be used: File name too long"),
+])
+def test_an_out_that_names_no_usable_directory_is_a_usage_error(out, message, config_file, tmp_path, capsys,
+                                                                monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exit_:
+        sweep.main(tiny_argv(out, config_file))
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_config_nested_thousands_deep_is_a_usage_error(tmp_path, capsys):
+    config = tmp_path / "deep.json"
+    config.write_text('{"sac": {"hidden_sizes": ' + "[" * 5000 + "]" * 5000 + "}}")
+    with pytest.raises(SystemExit) as exit_:
+        sweep.main(tiny_argv(tmp_path / "out", config))
+    assert exit_.value.code == 2
+    assert "it nests arrays and objects more than 32 levels deep" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_job_that_cannot_fit_in_memory_is_refused_before_anything_is_written(config_file, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert sweep.main(tiny_argv(out, config_file, "sac,bc", "0", 300, "--set", "sac.batch_size=1000000000")) == 2
+    # 10^9 transitions of 12 floats, twice, and the twin critics' 16 + 16 activations each: 328 GiB
+    assert re.fullmatch(r"lava-bridge-bench sweep: error: sac on LavaBridge-v0 \(500 demos\): "
+                        r"SACConfig\.batch_size=1000000000 does not fit in memory: 1 seed needs at least 327\.8 GiB "
+                        r"\(.*\), more than the [0-9.]+ [KMG]iB of memory available here; nothing written\n",
+                        capsys.readouterr().err)
+    assert not out.exists()
 
 
 def test_an_out_that_cannot_be_created_is_one_line(config_file, capsys):
