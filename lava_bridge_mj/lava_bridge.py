@@ -76,7 +76,8 @@ class LavaBridgeEnv(gymnasium.Env):
     ## Attributes
     `task`: the `LavaBridgeTask` (model, rewards, state checks, dynamics, start distributions) that
     this env drives its `data` (a `mujoco.MjData`) with; `model`, `layout`, `frame_skip`, `dt`, the
-    rewards and `start_distributions` are the task's.
+    rewards, `start_distributions` and `task_states` (its declaration for the start strategies) are
+    the task's.
 
     ## Version History
     - v0: initial release.
@@ -119,6 +120,8 @@ class LavaBridgeEnv(gymnasium.Env):
     lava_reward = _from_task("lava_reward", "The reward on touching lava.")
     step_reward = _from_task("step_reward", "The reward on every other step.")
     start_distributions = _from_task("start_distributions", "Start distribution by name ('p0', 'ood').")
+    task_states = _from_task("task_states", "What the start strategies need to know about its states (a "
+                                            "TaskStates): position (x, y), the goal, AuxSS's kernel scale.")
 
     # --- named physics accessors ---------------------------------------------------------------
     def lava_contact(self, data: mujoco.MjData | None = None) -> bool:

@@ -28,6 +28,7 @@ from lava_bridge_mj.checks import REAL_KINDS, check_number, check_real_array
 from lava_bridge_mj.layout import Layout
 from lava_bridge_mj.mjcf import load_model
 from lava_bridge_mj.starts import START_NAMES, start_distribution
+from lava_bridge_mj.task_states import TaskStates
 
 LAVA, GOAL = 1, 2
 """What a contact with a geom means (0: nothing, e.g. a wall)."""
@@ -52,7 +53,9 @@ class LavaBridgeTask:
 
     Attributes: `layout`, `model` (the compiled MjModel), `frame_skip` (physics steps per env step),
     `dt` (seconds per env step), the three rewards, `start_distributions` (name -> distribution),
-    `observation_space` and `action_space` (one env's), `skip_free_contacts` (True: `step` runs an
+    `observation_space` and `action_space` (one env's), `task_states` (what the start strategies
+    need to know about its states, `TaskStates`: the position (x, y), the goal, and AuxSS's kernel on
+    raw metres and m/s), `skip_free_contacts` (True: `step` runs an
     env step in which `free_motion` rules out every contact without collision detection, and one in
     which `clear_of_hazards` rules out lava and the goal without checking each physics step, the
     same numbers faster; False: every physics step is checked, the reference for tests and benchmarks).
@@ -90,6 +93,7 @@ class LavaBridgeTask:
         high = np.array([hx, hy, v, v])
         self.observation_space = spaces.Box(-high, high, dtype=np.float64)
         self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
+        self.task_states = TaskStates(position=(0, 1), goal=layout.goal, kernel_scale=(1.0, 1.0, 1.0, 1.0))
 
     # --- contacts ------------------------------------------------------------------------------
     def lava_contact(self, data: mujoco.MjData) -> bool:
