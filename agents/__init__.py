@@ -1,5 +1,9 @@
 """Agents: SAC, start-state strategies and the wrapper that plugs them into any resettable env.
 
+The start strategies take states of any length; what a task's coordinates mean comes from its
+`TaskStates` (lava_bridge_mj/task_states.py). Each strategy is registered once by name
+(agents/strategy_registry.py, which shows how to add one).
+
 The learners (`SAC`, `ReplayBuffer`) load torch, so they are imported on first use: the
 configurations and start strategies stay light."""
 
@@ -9,22 +13,25 @@ from lava_bridge_mj.agents.goaldist_ss import GoalDistSS
 from lava_bridge_mj.agents.omega_ss import OmegaSS, estimate_random_policy_safety
 from lava_bridge_mj.agents.reverse_curriculum import ReverseCurriculumSS, goal_reaching_demos
 from lava_bridge_mj.agents.start_state_wrapper import StartStateWrapper
-from lava_bridge_mj.agents.start_strategies import (
-    NO_STATE,
-    STRATEGY_NAMES,
-    P0Start,
-    StartStrategy,
-    StrategyContext,
-    UniformSS,
+from lava_bridge_mj.agents.start_strategies import NO_STATE, P0Start, StartStrategy, StrategyContext, UniformSS
+from lava_bridge_mj.agents.strategy_registry import (
+    STRATEGIES,
+    check_strategy_params,
     make_start_strategy,
+    register,
+    strategy_parameters,
 )
+from lava_bridge_mj.task_states import TaskStates, coordinate_spread, task_states_of
 
-__all__ = ["NO_STATE", "STRATEGY_NAMES", "SAC", "AuxSS", "GoalDistSS", "OmegaSS", "P0Start", "ReplayBuffer",
-           "ReverseCurriculumSS", "SACConfig", "StartStateWrapper", "StartStrategy", "StrategyContext", "UniformSS",
-           "estimate_random_policy_safety", "goal_reaching_demos", "make_start_strategy"]
+__all__ = ["NO_STATE", "STRATEGIES", "STRATEGY_NAMES", "SAC", "AuxSS", "GoalDistSS", "OmegaSS", "P0Start",
+           "ReplayBuffer", "ReverseCurriculumSS", "SACConfig", "StartStateWrapper", "StartStrategy", "StrategyContext",
+           "TaskStates", "UniformSS", "check_strategy_params", "coordinate_spread", "estimate_random_policy_safety",
+           "goal_reaching_demos", "make_start_strategy", "register", "strategy_parameters", "task_states_of"]
 
 
 def __getattr__(name: str):
+    if name == "STRATEGY_NAMES":  # follows later registrations
+        return tuple(STRATEGIES)
     if name == "SAC":
         from lava_bridge_mj.agents.sac import SAC
 

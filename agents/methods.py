@@ -1,7 +1,9 @@
 """The training methods, each described once: its learner, its start strategy and how it uses the demos.
 
 The training loop (eval/runner.py) reads only these fields, so a new method is one `Method` entry in
-`METHODS` plus its algorithm's file. Importing this module loads no learner (and no torch):
+`METHODS` plus its algorithm's file. Every registered start strategy (agents/strategy_registry.py) is
+a method of its own, SAC from its starts, named as the strategy (p0's is plain SAC, "sac"), so a new
+strategy needs no entry here. Importing this module loads no learner (and no torch):
 `Method.learner_class` imports the learner's module when a run builds it.
 """
 
@@ -11,11 +13,12 @@ import importlib
 from dataclasses import dataclass
 from typing import Any
 
+from .strategy_registry import STRATEGIES
+
 LEARNERS = {"sac": ("lava_bridge_mj.agents.sac", "SAC"), "bc": ("lava_bridge_mj.agents.offline", "BC"),
             "iql": ("lava_bridge_mj.agents.offline", "IQL")}
 """Learner name -> (module, class). The name is also the RunConfig section of its hyperparameters."""
 DEMO_USES = ("none", "hybrid", "offline", "guide")
-CANDIDATE_SETS = ("subset", "demo_episodes")
 
 
 @dataclass(frozen=True)
@@ -33,19 +36,22 @@ class Method:
     update and no episode runs; "guide": an offline learner fitted to them acts first in each
     episode (JSRL, agents/jsrl.py)."""
     description: str = ""
-    candidates: str = "subset"
-    """The demo states its start strategy chooses among: "subset", a seeded random subset of
-    `demo_subset` of them, the same for every method that uses it; "demo_episodes", every demo episode
-    that reaches the goal, whole and in time order, with each state's episode id (the reverse
-    curriculum walks each episode back from its end; eval/seed_run.py `candidate_states`)."""
 
     def __post_init__(self) -> None:
         if self.learner not in LEARNERS or self.demos not in DEMO_USES:
             raise ValueError(f"method {self.name!r}: learner must be one of {list(LEARNERS)} and demos one of "
                              f"{DEMO_USES}, got {self.learner!r} and {self.demos!r}")
-        if self.candidates not in CANDIDATE_SETS:
-            raise ValueError(f"method {self.name!r}: candidates must be one of {CANDIDATE_SETS}, "
-                             f"got {self.candidates!r}")
+        if self.start not in STRATEGIES:
+            raise ValueError(f"method {self.name!r}: start must be a registered start strategy, one of "
+                             f"{list(STRATEGIES)}, got {self.start!r}")
+
+    @property
+    def candidates(self) -> str:
+        """The demo states its start strategy chooses among: its strategy's `candidates` ("subset", a
+        seeded random subset of `demo_subset` of them, the same for every method that uses it;
+        "demo_episodes", every demo episode that reaches the goal, whole and in time order, with each
+        state's episode id; eval/seed_run.py `candidate_states`)."""
+        return STRATEGIES[self.start].candidates
 
     @property
     def online(self) -> bool:
@@ -74,14 +80,8 @@ def learner_class(name: str) -> type:
 
 
 METHODS = {method.name: method for method in (
-    Method("sac", "sac", "p0", description="plain SAC from p0"),
-    Method("auxss", "sac", "auxss", description="the paper's episode-length start-state safety"),
-    Method("omega_ss", "sac", "omega_ss", description="random-policy Monte-Carlo safety"),
-    Method("uniform_ss", "sac", "uniform_ss", description="uniform over demo states"),
-    Method("goaldist_ss", "sac", "goaldist_ss", description="goal-distance weighted, flattening over time"),
-    Method("reverse_ss", "sac", "reverse_ss", candidates="demo_episodes",
-           description="RFCL's per-demonstration reverse curriculum over the whole goal-reaching demo episodes, "
-                       "with its shortened time limits"),
+    *(Method("sac" if strategy.name == "p0" else strategy.name, "sac", strategy.name,
+             description=strategy.description) for strategy in STRATEGIES.values()),
     Method("hysac", "sac", "p0", "hybrid", description="SAC from p0 whose minibatches are half demo transitions (HyQ)"),
     Method("hysac_auxss", "sac", "auxss", "hybrid", description="both HySAC's replay and AuxSS's start states"),
     Method("jsrl", "sac", "p0", "guide", description="a guide learned from the demos (IQL by default) acts first "
@@ -89,4 +89,5 @@ METHODS = {method.name: method for method in (
     Method("bc", "bc", "p0", "offline", description="behaviour cloning"),
     Method("iql", "iql", "p0", "offline", description="IQL"),
 )}
-"""Every training method by its CLI name."""
+"""Every training method by its CLI name: SAC from each registered start strategy's starts (p0's
+is plain SAC, "sac"), then the methods that use the demos otherwise."""

@@ -8,21 +8,27 @@ where random actions soon fail are practised most.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
 from .checks import check_number, check_real_array
-from .start_strategies import StartStrategy, check_states
+from .start_strategies import StartStrategy, StrategyContext, check_states
 
 
 class OmegaSS(StartStrategy):
     """Omega-SS (static): sample inversely to the random policy's safety, `weights = 1 / max(omega, clamp)`.
 
     Args:
-        states: (n, 4) candidate start states.
+        states: (n, d) candidate start states, of any length d.
         omega: per state, the probability that k uniformly random actions do not end in failure
-            (`estimate_random_policy_safety` computes it), each in [0, 1].
+            (`estimate_random_policy_safety` computes it), each in [0, 1]. Give it, or `env` to
+            estimate it.
+        env: an env of the task whose `reset` accepts `options={"state": s}`, to estimate omega in
+            (`from_env`); a run supplies its probe env. Give it, or `omega`.
+        k: random actions per rollout (with `env`). Default 4.
+        rollouts: rollouts per state (with `env`). Default 32.
+        seed: seeds the rollouts' actions (with `env`); a run supplies its seed.
         clamp: floor on omega in (0, 1], so every weight lies in [1, 1 / clamp]. Default 0.05: a state
             certain to fail is at most 20x more likely than a perfectly safe one, and the floor sits
             above the 1/32 resolution of the default 32 rollouts, so one lucky survival does not change
@@ -30,6 +36,9 @@ class OmegaSS(StartStrategy):
     """
 
     name = "omega_ss"
+    description = "random-policy Monte-Carlo safety"
+    run_supplied = ("env",)
+    unrecorded = ("env", "omega")
 
     def __init__(self, states: Any, omega: Any, clamp: float = 0.05):
         super().__init__(states)
@@ -47,6 +56,30 @@ class OmegaSS(StartStrategy):
         states = check_states(states)
         return cls(states, estimate_random_policy_safety(env, states, k=k, rollouts=rollouts, seed=seed), clamp)
 
+    @classmethod
+    def parameters(cls) -> tuple[str, ...]:
+        return ("omega", "env", "k", "rollouts", "seed", "clamp")  # both constructors'
+
+    @classmethod
+    def builder(cls, params: dict[str, Any]) -> Callable[..., "OmegaSS"]:
+        """`from_env` with `env=`, the class itself with `omega=`; ValueError unless exactly one is given."""
+        if ("omega" in params) == ("env" in params):
+            raise ValueError("start strategy 'omega_ss' needs exactly one of omega= (precomputed) "
+                             "or env= (to estimate)")
+        rollout_params = sorted(set(params) & {"k", "rollouts", "seed"})
+        if "omega" in params and rollout_params:
+            raise ValueError(f"parameters {rollout_params} of 'omega_ss' only apply with env=, not omega=")
+        return cls.from_env if "env" in params else cls
+
+    @classmethod
+    def fill_params(cls, params: dict[str, Any], states: Any, context: StrategyContext) -> dict[str, Any]:
+        """Without `omega`, the run's probe env to estimate it in, and the run's seed for the rollouts."""
+        params = dict(params)
+        if "omega" not in params and context.probe is not None:
+            params.setdefault("seed", context.seed)
+            params.setdefault("env", context.probe)
+        return params
+
 
 def estimate_random_policy_safety(env: Any, states: Any, k: int = 4, rollouts: int = 32,
                                   seed: int = 0) -> np.ndarray:
@@ -57,7 +90,9 @@ def estimate_random_policy_safety(env: Any, states: Any, k: int = 4, rollouts: i
     result does not depend on the env's own seeding). A rollout fails when it terminates without
     `info["is_success"]` (lava, on LavaBridge-v0); reaching the goal or being truncated is not a
     failure, since Omega measures how easily random actions end the episode badly.
-    Works with any gymnasium env with a Box action space whose reset accepts `options={"state": s}`.
+    Works with any gymnasium env with a Box action space whose reset accepts `options={"state": s}`
+    with states of any length (`lava_bridge_mj.ResetToState` gives one to a MuJoCo env); an env that
+    never sets `info["is_success"]` counts every termination as a failure.
     """
     states = check_states(states)
     if not (isinstance(k, (int, np.integer)) and k >= 1):

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from .checks import check_integer, check_number, check_real_array
-from .start_strategies import NO_STATE, StartStrategy, _read_only, _sample_index
+from .start_strategies import NO_STATE, StartStrategy, StrategyContext, _read_only, _sample_index
 
 DEMO_SAMPLERS = ("uniform", "remaining")
 FORWARD_WINDOW = 5
@@ -70,14 +70,15 @@ def rank_weights(values: np.ndarray, temperature: float) -> np.ndarray:
     return weights / weights.sum()
 
 
-def _check_forward_states(value: Any) -> np.ndarray:
+def _check_forward_states(value: Any, dim: int) -> np.ndarray:
     try:
         array = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):  # not numbers, or ragged
         array = np.zeros(0)
-    if array.ndim != 2 or array.shape[1] != 4 or len(array) == 0 or not np.isfinite(array).all():
+    if array.ndim != 2 or array.shape[1] != dim or len(array) == 0 or not np.isfinite(array).all():
         got = repr(value) if array.size <= 8 else f"shape {array.shape}"
-        raise ValueError(f"forward_states must be a (k, 4) array of finite p0 states with k >= 1, or None, got {got}")
+        raise ValueError(f"forward_states must be a (k, {dim}) array of finite p0 states with k >= 1, or None, "
+                         f"got {got}")
     return array
 
 
@@ -93,10 +94,10 @@ class ReverseCurriculumSS(StartStrategy):
     `sample` returns `NO_STATE`.
 
     Args:
-        states: (n, 4) demonstration states: whole trajectories, each in time order, whose last
+        states: (n, d) demonstration states, of any length d: whole trajectories, each in time order, whose last
             state is one step before the goal (`goal_reaching_demos` gives them from a demo set).
         episode_ids: (n,) integers, the demonstration each state belongs to; each demonstration's
-            states are contiguous.
+            states are contiguous. A run supplies its candidates' episode ids.
         per_demo_buffer_size: m, how many of a demonstration's latest episodes from its t_i are
             remembered; t_i moves once all m reached the goal (RFCL's default 3).
         reverse_step_size: how many states t_i moves towards the start each time (RFCL's delta;
@@ -110,11 +111,16 @@ class ReverseCurriculumSS(StartStrategy):
             (`time_limit`), which `StartStateWrapper` enforces, capped by the env's own limit. On
             by default with RFCL's 3; None keeps the env's limit for every episode.
         max_steps_min: the constant of that limit, so its smallest value (8, RFCL's ManiSkill port).
-        forward_states: None, or (k, 4) p0 start states for the forward curriculum (RFCL draws
+        forward_states: None, or (k, d) p0 start states for the forward curriculum (RFCL draws
             from 1,000 fixed env seeds: e.g. 1,000 seeded draws of the task's p0 distribution).
     """
 
     name = "reverse_ss"
+    description = ("RFCL's per-demonstration reverse curriculum over the whole goal-reaching demo episodes, "
+                   "with its shortened time limits")
+    candidates = "demo_episodes"
+    run_supplied = ("episode_ids",)
+    unrecorded = ("episode_ids", "forward_states")
 
     def __init__(self, states: Any, episode_ids: Any, per_demo_buffer_size: int = 3, reverse_step_size: int = 1,
                  demo_sampler: str = "uniform", demo_horizon_to_max_steps_ratio: float | None = 3.0,
@@ -147,12 +153,21 @@ class ReverseCurriculumSS(StartStrategy):
         self._solved = np.zeros(len(self._demo_first), dtype=bool)
 
         self._num_demo_states = n
-        forward = np.zeros((0, 4)) if forward_states is None else _check_forward_states(forward_states)
+        dim = self._states.shape[1]
+        forward = np.zeros((0, dim)) if forward_states is None else _check_forward_states(forward_states, dim)
         self._states = np.vstack([self._states, forward])
         self._weights = np.zeros(len(self._states))
         self._forward_outcomes: list[list[bool]] = [[] for _ in forward]
         self._staleness = np.zeros(len(forward), dtype=np.int64)
         self._refresh_weights()
+
+    @classmethod
+    def fill_params(cls, params: dict[str, Any], states: Any, context: StrategyContext) -> dict[str, Any]:
+        """The run's candidates' episode ids, unless given."""
+        params = dict(params)
+        if context.episode_ids is not None:
+            params.setdefault("episode_ids", context.episode_ids)
+        return params
 
     # --- what the curriculum is at ----------------------------------------------------------
     @property
@@ -161,12 +176,12 @@ class ReverseCurriculumSS(StartStrategy):
 
     @property
     def demo_states(self) -> np.ndarray:
-        """The demonstration states, (n, 4), read-only: `states` without the forward states."""
+        """The demonstration states, (n, d), read-only: `states` without the forward states."""
         return _read_only(self._states[:self._num_demo_states])
 
     @property
     def forward_states(self) -> np.ndarray:
-        """The forward curriculum's p0 states, (k, 4), read-only; (0, 4) without them."""
+        """The forward curriculum's p0 states, (k, d), read-only; (0, d) without them."""
         return _read_only(self._states[self._num_demo_states:])
 
     @property

@@ -1,7 +1,8 @@
 """Start-state strategies: which demonstration state each training episode starts from.
 
-Every strategy holds a fixed candidate set `states`, an (n, 4) array of demo states (x, y, vx, vy),
-and at each reset picks an index into it; some learn from how each episode went. The shared API:
+Every strategy holds a fixed candidate set `states`, an (n, d) array of demo states of any length d
+(LavaBridge's are (x, y, vx, vy)), and at each reset picks an index into it; some learn from how each
+episode went. The shared API:
 
 - `sample(rng) -> int`: an index into `states` (or `NO_STATE` for the MDP's own start distribution),
   drawn with probability `weights[i] / sum(weights)` from the caller's `np.random.Generator`.
@@ -10,23 +11,25 @@ and at each reset picks an index into it; some learn from how each episode went.
 - `state_dict()` / `load_state_dict(d)`: the learned state as plain Python values (JSON and pickle
   both work), so a resumed run continues where it stopped.
 
-This module holds the base class `StartStrategy`, the two fixed ones, `P0Start` for the MDP's own
-start distribution and `UniformSS`, and the factory: `make_start_strategy(name, states, **params)`
-builds any strategy by its CLI name. The paper's methods (docs/design.md, section 1) each have their
-own module: `AuxSS` (Algorithm 2) in agents/auxss.py, `OmegaSS` in agents/omega_ss.py and
-`GoalDistSS` in agents/goaldist_ss.py; RFCL's reverse curriculum, `ReverseCurriculumSS`, is in
-agents/reverse_curriculum.py.
+This module holds the base class `StartStrategy`, which also declares how a strategy is built by
+name (its CLI name, parameters and what a run supplies), `StrategyContext`, what a run supplies, and
+the two fixed strategies, `P0Start` for the MDP's own start distribution and `UniformSS`. The paper's
+methods (docs/design.md, section 1) each have their own module: `AuxSS` (Algorithm 2) in
+agents/auxss.py, `OmegaSS` in agents/omega_ss.py and `GoalDistSS` in agents/goaldist_ss.py; RFCL's
+reverse curriculum, `ReverseCurriculumSS`, is in agents/reverse_curriculum.py. The registry of them
+all and `make_start_strategy(name, states, **params)`, which builds any by its CLI name, are in
+agents/strategy_registry.py (and importable from here).
 """
 
 from __future__ import annotations
 
-import importlib
 import inspect
-import json
 from dataclasses import dataclass
-from typing import Any, Callable, Collection, Sequence
+from typing import Any, Callable
 
 import numpy as np
+
+from lava_bridge_mj.task_states import TaskStates, task_states_of
 
 NO_STATE = -1
 """What `P0Start.sample` returns: start from the env's own reset, not from a candidate state.
@@ -35,15 +38,16 @@ NO_STATE = -1
 
 # --- shared helpers ---------------------------------------------------------------------------
 def check_states(states: Any) -> np.ndarray:
-    """`states` as a float64 (n, 4) array with n >= 1 and finite entries; ValueError otherwise."""
+    """`states` as a float64 (n, d) array with n >= 1, d >= 1 and finite entries; ValueError otherwise."""
     try:
         array = np.array(states, dtype=np.float64)
     except (TypeError, ValueError):
-        raise ValueError(f"states must be an (n, 4) array of numbers, got {type(states).__name__}") from None
-    if array.ndim != 2 or array.shape[1] != 4:
-        raise ValueError(f"states must have shape (n, 4) = rows of (x, y, vx, vy), got shape {array.shape}")
+        raise ValueError(f"states must be an (n, d) array of numbers, one row per state, "
+                         f"got {type(states).__name__}") from None
+    if array.ndim != 2 or array.shape[1] == 0:
+        raise ValueError(f"states must have shape (n, d), one row of coordinates per state, got shape {array.shape}")
     if len(array) == 0:
-        raise ValueError("states must hold at least one state, got shape (0, 4)")
+        raise ValueError(f"states must hold at least one state, got shape {array.shape}")
     bad_rows = np.flatnonzero(~np.isfinite(array).all(axis=1))
     if bad_rows.size:
         raise ValueError(f"states must be finite; rows {bad_rows[:5].tolist()} are not")
@@ -63,19 +67,66 @@ def _sample_index(weights: np.ndarray, rng: np.random.Generator) -> int:
     return int(np.searchsorted(cumulative, rng.random() * cumulative[-1], side="right"))
 
 
+CANDIDATE_SETS = ("subset", "demo_episodes")
+"""The demo states a strategy chooses among in a run (`StartStrategy.candidates`)."""
+
+
 class StartStrategy:
     """Base class: a fixed distribution `weights` over the candidate `states` that ignores feedback.
 
-    Subclasses set `name` (the CLI name) and `self._weights`; learning ones override `update` and
-    the `_learned_state` / `_load_learned_state` pair that `state_dict` / `load_state_dict` call.
+    Subclasses set `name` and `self._weights`; learning ones override `update` and the
+    `_learned_state` / `_load_learned_state` pair that `state_dict` / `load_state_dict` call.
+
+    A subclass is also its own declaration for building it by name (agents/strategy_registry.py):
+    `name`, `description` and `candidates` below; its keyword parameters, with their defaults, are
+    its constructor's (`parameters`), documented in its docstring's Args; `fill_params` takes from a
+    run what the parameters leave unset. Registering the class makes it a strategy of
+    `make_start_strategy`, of the CLI's `--method` and of a config's `strategy` section.
     """
 
     name = ""
+    """Its name in `make_start_strategy`, the CLI's --method and a run's files."""
+    description = ""
+    """One line on what it does, for the CLI's help and the docs."""
+    candidates = "subset"
+    """The demo states it chooses among in a run: "subset", a seeded random subset of the demo states,
+    the same for every strategy that uses it; "demo_episodes", every demo episode that reaches the goal,
+    whole and in time order, with each state's episode id (eval/seed_run.py `candidate_states`)."""
+    run_supplied: tuple[str, ...] = ()
+    """Parameters that only code supplies (a run from its context, or a caller), never a config: an env
+    to roll out in, a function, the candidates' own episode ids."""
+    unrecorded: tuple[str, ...] = ()
+    """Parameters left out of `settings`: objects and per-state data, not settings."""
     horizon: int | None = None
     """The env's step limit that `update` scores episode lengths against (AuxSS's H); None for a
     strategy that does not depend on it. `StartStateWrapper` checks it against the env's limit."""
     settings: dict[str, Any] | None = None
     """Every setting it was built with, defaults filled in (set by `make_start_strategy`)."""
+
+    # --- how it is built by name --------------------------------------------------------------
+    @classmethod
+    def parameters(cls) -> tuple[str, ...]:
+        """The keyword parameters `make_start_strategy` accepts for it, in order: its constructor's."""
+        return tuple(name for name in inspect.signature(cls).parameters if name != "states")
+
+    @classmethod
+    def builder(cls, params: dict[str, Any]) -> Callable[..., "StartStrategy"]:
+        """What builds it from `states` and the keyword parameters `params`: the class itself, or an
+        alternative constructor that `params` call for (Omega-SS estimates its omega from an env)."""
+        return cls
+
+    @classmethod
+    def fill_params(cls, params: dict[str, Any], states: Any, context: "StrategyContext") -> dict[str, Any]:
+        """`params` completed with what the run's `context` supplies (its env, task, seed, step limit,
+        budget) where they leave it unset; a new dict. A strategy that needs nothing from a run
+        returns them as they are."""
+        return dict(params)
+
+    @classmethod
+    def budget_tied(cls, params: dict[str, Any]) -> bool:
+        """True when, built with `params` in a run, it depends on the run's training steps, so the
+        run cannot be extended to more steps (GoalDist-SS's budget schedule)."""
+        return False
 
     def __init__(self, states: Any):
         self._states = check_states(states)
@@ -83,7 +134,7 @@ class StartStrategy:
 
     @property
     def states(self) -> np.ndarray:
-        """The candidate start states, (n, 4), read-only."""
+        """The candidate start states, (n, d), read-only."""
         return _read_only(self._states)
 
     @property
@@ -151,13 +202,17 @@ class P0Start(StartStrategy):
 
     Kept a strategy, rather than a special case of the runner, so every method goes through the same
     `StartStateWrapper`; the wrapper then calls the env's plain `reset()`. It has no candidate
-    states: `states` is (0, 4) and `weights` is empty.
+    states: `states` is (0, 0) and `weights` is empty.
+
+    Args:
+        states: ignored (accepted so that every strategy is built alike).
     """
 
     name = "p0"
+    description = "plain SAC from p0"
 
-    def __init__(self) -> None:
-        self._states = np.zeros((0, 4))
+    def __init__(self, states: Any = None) -> None:
+        self._states = np.zeros((0, 0))
         self._weights = np.zeros(0)
 
     @property
@@ -173,139 +228,52 @@ class P0Start(StartStrategy):
 
 
 class UniformSS(StartStrategy):
-    """U-SS: every demo state equally likely, forever (weights are all ones)."""
+    """U-SS: every demo state equally likely, forever (weights are all ones).
+
+    Args:
+        states: (n, d) candidate start states.
+    """
 
     name = "uniform_ss"
+    description = "uniform over demo states"
 
 
-# --- building by CLI name ---------------------------------------------------------------------
-STRATEGY_PARAMS: dict[str, tuple[str, ...]] = {
-    "p0": (),
-    "auxss": ("horizon", "delta", "sigma", "state_scale", "count_successes", "ema", "kernel_dims",
-              "timeout_weight"),
-    "omega_ss": ("omega", "env", "k", "rollouts", "seed", "clamp"),
-    "uniform_ss": (),
-    "goaldist_ss": ("goal", "temperature", "temperature_growth", "max_temperature", "schedule", "budget"),
-    "reverse_ss": ("episode_ids", "per_demo_buffer_size", "reverse_step_size", "demo_sampler",
-                   "demo_horizon_to_max_steps_ratio", "max_steps_min", "forward_states"),
-}
-"""The keyword parameters each CLI name accepts in `make_start_strategy`."""
-STRATEGY_NAMES = tuple(STRATEGY_PARAMS)
-
-
+# --- what a run supplies ----------------------------------------------------------------------
 @dataclass(frozen=True)
 class StrategyContext:
     """What a run supplies to its start strategy, the same for every strategy: `probe`, an env of the
-    run's task that Omega-SS's safety rollouts use (left at an arbitrary state), the task's `goal`
-    (x, y) that GoalDist-SS weighs by, the run's `seed` (Omega-SS's rollouts) and `horizon`, the env's
-    step limit (AuxSS's H), `episode_ids`, the demo episode of each candidate state where the
-    candidates are whole demo episodes (the reverse curriculum's), and `budget`, the run's training
-    steps (GoalDist-SS's schedule "budget"). A strategy takes from it only what its parameters leave
-    unset."""
+    run's task that resets to a state (Omega-SS's safety rollouts; left at an arbitrary state), `task`,
+    what the task declares about its states (`TaskStates`: AuxSS's kernel scale and position, the
+    goal or goal distance of GoalDist-SS; None: nothing, so each strategy keeps its own defaults), the
+    run's `seed` (Omega-SS's rollouts) and `horizon`, the env's step limit (AuxSS's H), `episode_ids`,
+    the demo episode of each candidate state where the candidates are whole demo episodes (the reverse
+    curriculum's), and `budget`, the run's training steps (GoalDist-SS's schedule "budget"). A strategy
+    takes from it only what its parameters leave unset (`StartStrategy.fill_params`)."""
 
     probe: Any = None
-    goal: Sequence[float] | None = None
+    task: TaskStates | None = None
     seed: int = 0
     horizon: int | None = None
     episode_ids: Any = None
     budget: int | None = None
 
     @classmethod
-    def from_env(cls, probe: Any, seed: int, horizon: int, episode_ids: Any = None,
-                 budget: int | None = None) -> "StrategyContext":
-        """The context of a run of `probe`'s task (a LavaBridgeEnv: its layout's goal)."""
-        return cls(probe=probe, goal=tuple(probe.layout.goal), seed=seed, horizon=horizon, episode_ids=episode_ids,
-                   budget=budget)
-
-    def fill(self, name: str, params: dict[str, Any]) -> dict[str, Any]:
-        """`params` of strategy `name` with what the run supplies added where they leave it unset."""
-        params = dict(params)
-        if name == "omega_ss" and "omega" not in params:
-            params.setdefault("seed", self.seed)
-            params.setdefault("env", self.probe)
-        if name == "goaldist_ss" and self.goal is not None:
-            params.setdefault("goal", self.goal)
-        if name == "goaldist_ss" and params.get("schedule") == "budget" and self.budget is not None:
-            params.setdefault("budget", self.budget)
-        if name == "auxss" and self.horizon is not None:
-            params.setdefault("horizon", self.horizon)
-        if name == "reverse_ss" and self.episode_ids is not None:
-            params.setdefault("episode_ids", self.episode_ids)
-        return params
+    def from_env(cls, probe: Any, seed: int, horizon: int | None, episode_ids: Any = None,
+                 budget: int | None = None, task: TaskStates | None = None) -> "StrategyContext":
+        """The context of a run of `probe`'s task: its `task` is the one given, else the `TaskStates`
+        that `probe` declares (`task_states_of`: LavaBridgeEnv's, or a wrapper's), else
+        `TaskStates()`, the generic defaults."""
+        return cls(probe=probe, task=task_states_of(probe) if task is None else task, seed=seed, horizon=horizon,
+                   episode_ids=episode_ids, budget=budget)
 
 
-def make_start_strategy(name: str, states: Any = None, context: StrategyContext | None = None,
-                        **params: Any) -> StartStrategy:
-    """Build a start strategy by its CLI name: p0, auxss, omega_ss, uniform_ss, goaldist_ss or
-    reverse_ss.
-
-    `states` is the (n, 4) candidate set (ignored, and may be None, for p0). Parameters are the
-    classes' keyword arguments (`STRATEGY_PARAMS` lists them); `context` supplies the run's probe
-    env, goal, seed, horizon and demo episode ids where they are unset. omega_ss takes exactly one of `omega=`
-    (precomputed, e.g. cached) or `env=` (estimated here by `estimate_random_policy_safety` with `k`,
-    `rollouts`, `seed`). goaldist_ss needs `goal=(x, y)`, reverse_ss `episode_ids=`
-    (agents/reverse_curriculum.py). Unknown names or parameters raise
-    ValueError naming them and what is accepted (`check_strategy_params`).
-
-    The strategy's `settings` are every setting it was built with, the code's defaults filled in,
-    as JSON values: what a run's config leaves to the defaults, written down (provenance.json) so
-    that a later change of a default cannot silently relabel the runs made before it. The env of
-    Omega-SS's rollouts and a precomputed omega are objects, not settings, and are left out.
-    """
-    check_strategy_params(name, params)
-    if context is not None:
-        params = context.fill(name, params)
-    strategy = _build(name, states, params)
-    strategy.settings = _settings(name, params)
-    return strategy
+_REGISTRY_NAMES = ("STRATEGIES", "STRATEGY_NAMES", "check_strategy_params", "make_start_strategy")
 
 
-def check_strategy_params(name: str, params: Collection[str], supplied: Collection[str] = ()) -> None:
-    """ValueError unless `name` is a strategy's CLI name and every one of `params` is a parameter of it
-    (`STRATEGY_PARAMS`). `supplied` are parameters the caller always fills in itself: they are refused
-    too, and left out of the accepted ones that the message lists."""
-    if name not in STRATEGY_PARAMS:
-        raise ValueError(f"unknown start strategy {name!r}; expected one of {STRATEGY_NAMES}")
-    accepted = [parameter for parameter in STRATEGY_PARAMS[name] if parameter not in supplied]
-    unknown = sorted(set(params) - set(accepted))
-    if unknown:
-        raise ValueError(f"unknown parameters {unknown} for start strategy {name!r}; "
-                         f"it accepts {accepted or 'none'}")
+def __getattr__(name: str) -> Any:
+    # the registry imports every strategy's module, and each of those builds on this one
+    if name in _REGISTRY_NAMES:
+        from lava_bridge_mj.agents import strategy_registry
 
-
-_CLASSES = {"p0": ("start_strategies", "P0Start"), "uniform_ss": ("start_strategies", "UniformSS"),
-            "auxss": ("auxss", "AuxSS"), "omega_ss": ("omega_ss", "OmegaSS"),
-            "goaldist_ss": ("goaldist_ss", "GoalDistSS"), "reverse_ss": ("reverse_curriculum", "ReverseCurriculumSS")}
-"""CLI name -> (its module in agents/, its class)."""
-
-
-def _builder(name: str, params: dict[str, Any]) -> Callable[..., StartStrategy]:
-    """What builds strategy `name` from `params`: its class, or `OmegaSS.from_env` to estimate omega."""
-    module, attribute = _CLASSES[name]
-    # imported on use: each strategy's module builds on this one
-    strategy_class = getattr(importlib.import_module(f".{module}", __package__), attribute)
-    return strategy_class.from_env if name == "omega_ss" and "env" in params else strategy_class
-
-
-def _build(name: str, states: Any, params: dict[str, Any]) -> StartStrategy:
-    if name == "p0":
-        return P0Start()
-    if name == "goaldist_ss" and "goal" not in params:
-        raise ValueError("start strategy 'goaldist_ss' needs goal=(x, y)")
-    if name == "omega_ss":
-        if ("omega" in params) == ("env" in params):
-            raise ValueError("start strategy 'omega_ss' needs exactly one of omega= (precomputed) "
-                             "or env= (to estimate)")
-        rollout_params = sorted(set(params) & {"k", "rollouts", "seed"})
-        if "omega" in params and rollout_params:
-            raise ValueError(f"parameters {rollout_params} of 'omega_ss' only apply with env=, not omega=")
-    return _builder(name, params)(states, **params)
-
-
-def _settings(name: str, params: dict[str, Any]) -> dict[str, Any]:
-    """The settings of a strategy built from valid `params` (see make_start_strategy)."""
-    skipped = {"self", "states", "env", "omega", "episode_ids", "forward_states"}
-    settings = {parameter.name: params.get(parameter.name, parameter.default)
-                for parameter in inspect.signature(_builder(name, params)).parameters.values()
-                if parameter.name not in skipped}
-    return json.loads(json.dumps(settings, default=lambda value: np.asarray(value).tolist()))
+        return getattr(strategy_registry, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -14,7 +14,7 @@ import lava_bridge_mj
 from lava_bridge_mj.agents.checks import check_fits_in_memory, check_integer, check_number
 from lava_bridge_mj.agents.configs import BCConfig, IQLConfig, JSRLConfig, SACConfig
 from lava_bridge_mj.agents.methods import METHODS as METHOD_SPECS
-from lava_bridge_mj.agents.start_strategies import check_strategy_params
+from lava_bridge_mj.agents.strategy_registry import check_strategy_params, strategy_class
 
 METHODS = tuple(METHOD_SPECS)
 """Training methods, by their CLI names (agents/methods.py describes each)."""
@@ -27,9 +27,6 @@ MAX_STEPS = 10**12
 suite's few thousand steps per second, so a larger number is a typo, not a budget."""
 MAX_EVAL_EPISODES = 1000
 """Evaluation keeps one env per episode; 1,000 already gives a success rate to within about 0.03."""
-RUNNER_STRATEGY_PARAMS = ("env", "episode_ids")
-"""Start-strategy parameters that the runner supplies and a config cannot: the probe env of Omega-SS's
-rollouts and the candidates' own demo episode ids."""
 
 
 class ConfigurationError(ValueError):
@@ -133,8 +130,7 @@ class RunConfig:
         """True when more than the loop's end depends on `steps`: GoalDist-SS's schedule "budget"
         spreads its temperature over the run's steps (unless the config sets its `budget`), so such a
         run cannot be extended to a larger budget."""
-        return (METHOD_SPECS[self.method].start == "goaldist_ss" and self.strategy.get("schedule") == "budget"
-                and "budget" not in self.strategy)
+        return strategy_class(METHOD_SPECS[self.method].start).budget_tied(self.strategy)
 
     @classmethod
     def from_dict(cls, values: dict[str, Any], source: str = "config") -> "RunConfig":
@@ -154,7 +150,7 @@ class RunConfig:
         spec = METHOD_SPECS.get(method) if isinstance(method, str) else None
         try:
             if spec is not None:  # an unknown method is named below
-                check_strategy_params(spec.start, strategy, supplied=RUNNER_STRATEGY_PARAMS)
+                check_strategy_params(spec.start, strategy, from_config=True)
             return cls(**values)
         except (TypeError, ValueError) as error:  # e.g. a hyperparameter of the wrong type or range
             raise ValueError(f"{source}: {error}") from None

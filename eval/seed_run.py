@@ -17,7 +17,8 @@ from lava_bridge_mj.agents.methods import METHODS
 from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
 from lava_bridge_mj.agents.reverse_curriculum import goal_reaching_demos
 from lava_bridge_mj.agents.start_state_wrapper import StartSelector
-from lava_bridge_mj.agents.start_strategies import StrategyContext, make_start_strategy
+from lava_bridge_mj.agents.start_strategies import StrategyContext
+from lava_bridge_mj.agents.strategy_registry import make_start_strategy
 from lava_bridge_mj.eval.config import ConfigurationError, RunConfig
 from lava_bridge_mj.eval.run_files import CHECKPOINT_VERSION, POLICIES, save_checkpoint, save_torch, write_results
 from lava_bridge_mj.vector import LavaBridgeVectorEnv
@@ -41,7 +42,8 @@ def candidate_states(config: RunConfig) -> tuple[np.ndarray, np.ndarray | None]:
 class SeedRun:
     """Seed `config.seed` of a batch: sub-env `index` of the batch's `envs`, its start strategy
     (built once from the method's strategy name, the candidate states and the run's context: `probe`,
-    an env of the task, the env's step limit and the candidates' demo episode ids), replay buffer,
+    an env of the task, what the task declares about its states, the env's step limit and the
+    candidates' demo episode ids), replay buffer,
     RNGs, metrics and directory. A strategy's `time_limit` shortens the episodes it starts, as
     `StartStateWrapper` does."""
 
@@ -52,10 +54,8 @@ class SeedRun:
         self.states, episode_ids = candidate_states(config)
         context = StrategyContext.from_env(probe, config.seed, envs.max_episode_steps, episode_ids,
                                            budget=config.steps)
-        start = self.method.start
         try:  # the strategy checks its parameters' values: the config's checks name only the parameters
-            self.strategy = make_start_strategy(start, None if start == "p0" else self.states, context,
-                                                **config.strategy)
+            self.strategy = make_start_strategy(self.method.start, self.states, context, **config.strategy)
             self.selector = StartSelector(self.strategy, config.seed, max_episode_steps=envs.max_episode_steps)
         except ValueError as error:
             raise ConfigurationError(f"strategy: {error}") from None

@@ -24,6 +24,7 @@ from lava_bridge_mj.agents.start_strategies import (
     make_start_strategy,
 )
 from lava_bridge_mj.eval.config import RunConfig
+from lava_bridge_mj.task_states import TaskStates
 
 # Three states for hand computation: S1 is 0.3 m from S0 in x, S2 differs from S0 only in vy (0.6 m/s).
 # With sigma = 0.3 (2 sigma^2 = 0.18): lam(S0, S1) = exp(-0.09 / 0.18) = exp(-0.5),
@@ -61,7 +62,7 @@ def test_auxss_update_matches_hand_computation_with_delta_floor():
 
 
 def test_auxss_position_kernel_ignores_velocity():
-    aux = AuxSS(THREE_STATES, horizon=100, delta=0.05, sigma=0.3, kernel_dims="position")
+    aux = AuxSS(THREE_STATES, horizon=100, delta=0.05, sigma=0.3, kernel_dims=[0, 1])  # LavaBridge's (x, y)
     aux.update(0, 40)
     # S2 sits at S0's position, so lam = 1 and it takes W[0] outright
     np.testing.assert_allclose(aux.weights, [0.6, 1 - 0.4 * math.exp(-0.5), 0.6], rtol=1e-12)
@@ -152,7 +153,7 @@ def test_auxss_rejects_bad_parameters(params, match):
 
 
 @pytest.mark.parametrize("states, match", [
-    (np.zeros((0, 4)), "at least one"), (np.zeros((3, 2)), r"shape \(n, 4\)"), (np.zeros(4), r"shape \(n, 4\)"),
+    (np.zeros((0, 4)), "at least one"), (np.zeros((3, 0)), r"shape \(n, d\)"), (np.zeros(4), r"shape \(n, d\)"),
     (np.array([[0, 0, 0, np.nan]]), "finite"), ("abc", "numbers"),
 ])
 def test_strategies_reject_bad_states(states, match):
@@ -331,7 +332,7 @@ def test_goaldist_schedule_and_budget_are_checked(params, message):
 
 
 def test_a_run_supplies_its_steps_as_the_budget_of_goaldist_budget_schedule():
-    context = StrategyContext(goal=(1.5, 2.0), budget=2000)
+    context = StrategyContext(task=TaskStates(goal=(1.5, 2.0)), budget=2000)
     budget = make_start_strategy("goaldist_ss", THREE_STATES, context, schedule="budget")
     assert budget.budget == 2000 and budget.settings["budget"] == 2000 and budget.settings["schedule"] == "budget"
     assert make_start_strategy("goaldist_ss", THREE_STATES, context, schedule="budget", budget=50).budget == 50
@@ -434,7 +435,7 @@ def test_strategy_settings_fill_in_the_defaults_and_keep_what_was_given():
 
 
 def test_the_context_fills_only_what_the_parameters_leave_unset():
-    context = StrategyContext(probe=CountdownEnv(), goal=(1.5, 2.0), seed=7, horizon=300)
+    context = StrategyContext(probe=CountdownEnv(), task=TaskStates(goal=(1.5, 2.0)), seed=7, horizon=300)
     assert make_start_strategy("auxss", THREE_STATES, context).horizon == 300
     assert make_start_strategy("auxss", THREE_STATES, context, horizon=500).horizon == 500
     assert make_start_strategy("goaldist_ss", THREE_STATES, context).settings["goal"] == [1.5, 2.0]
