@@ -16,6 +16,7 @@ from lava_bridge_mj.agents.start_state_wrapper import StartStateWrapper
 from lava_bridge_mj.agents.start_strategies import NO_STATE, P0Start, StartStrategy, StrategyContext, UniformSS
 from lava_bridge_mj.agents.strategy_registry import (
     STRATEGIES,
+    STRATEGY_NAMES,
     check_strategy_params,
     make_start_strategy,
     register,
@@ -30,8 +31,6 @@ __all__ = ["NO_STATE", "STRATEGIES", "STRATEGY_NAMES", "SAC", "AuxSS", "GoalDist
 
 
 def __getattr__(name: str):
-    if name == "STRATEGY_NAMES":  # follows later registrations
-        return tuple(STRATEGIES)
     if name == "SAC":
         from lava_bridge_mj.agents.sac import SAC
 

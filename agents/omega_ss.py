@@ -22,13 +22,8 @@ class OmegaSS(StartStrategy):
     Args:
         states: (n, d) candidate start states, of any length d.
         omega: per state, the probability that k uniformly random actions do not end in failure
-            (`estimate_random_policy_safety` computes it), each in [0, 1]. Give it, or `env` to
-            estimate it.
-        env: an env of the task whose `reset` accepts `options={"state": s}`, to estimate omega in
-            (`from_env`); a run supplies its probe env. Give it, or `omega`.
-        k: random actions per rollout (with `env`). Default 4.
-        rollouts: rollouts per state (with `env`). Default 32.
-        seed: seeds the rollouts' actions (with `env`); a run supplies its seed.
+            (`estimate_random_policy_safety` computes it), each in [0, 1]. `from_env` estimates it
+            instead; built by name, give `omega=` or `env=`.
         clamp: floor on omega in (0, 1], so every weight lies in [1, 1 / clamp]. Default 0.05: a state
             certain to fail is at most 20x more likely than a perfectly safe one, and the floor sits
             above the 1/32 resolution of the default 32 rollouts, so one lucky survival does not change
@@ -52,13 +47,27 @@ class OmegaSS(StartStrategy):
     @classmethod
     def from_env(cls, states: Any, env: Any, k: int = 4, rollouts: int = 32, seed: int = 0,
                  clamp: float = 0.05) -> "OmegaSS":
-        """Estimate omega by random rollouts in `env` (`estimate_random_policy_safety`), then build."""
+        """Estimate omega by random rollouts in `env` (`estimate_random_policy_safety`), then build.
+
+        Args:
+            states: (n, d) candidate start states.
+            env: an env of the task whose `reset` accepts `options={"state": s}`, to estimate omega
+                in; a run supplies its probe env.
+            k: random actions per rollout. Default 4.
+            rollouts: rollouts per state. Default 32.
+            seed: seeds the rollouts' actions; a run supplies its seed.
+            clamp: as for the class.
+        """
         states = check_states(states)
         return cls(states, estimate_random_policy_safety(env, states, k=k, rollouts=rollouts, seed=seed), clamp)
 
     @classmethod
+    def constructors(cls) -> tuple[Callable[..., "OmegaSS"], ...]:
+        return (cls, cls.from_env)
+
+    @classmethod
     def parameters(cls) -> tuple[str, ...]:
-        return ("omega", "env", "k", "rollouts", "seed", "clamp")  # both constructors'
+        return ("omega", "env", "k", "rollouts", "seed", "clamp")  # both constructors', omega's first
 
     @classmethod
     def builder(cls, params: dict[str, Any]) -> Callable[..., "OmegaSS"]:

@@ -105,14 +105,20 @@ class StartStrategy:
 
     # --- how it is built by name --------------------------------------------------------------
     @classmethod
+    def constructors(cls) -> tuple[Callable[..., "StartStrategy"], ...]:
+        """What can build it from `states` and keyword parameters, each documenting its own under Args:
+        the class itself and any alternative constructor (Omega-SS's `from_env`)."""
+        return (cls,)
+
+    @classmethod
     def parameters(cls) -> tuple[str, ...]:
         """The keyword parameters `make_start_strategy` accepts for it, in order: its constructor's."""
         return tuple(name for name in inspect.signature(cls).parameters if name != "states")
 
     @classmethod
     def builder(cls, params: dict[str, Any]) -> Callable[..., "StartStrategy"]:
-        """What builds it from `states` and the keyword parameters `params`: the class itself, or an
-        alternative constructor that `params` call for (Omega-SS estimates its omega from an env)."""
+        """Which of its `constructors` builds it from the keyword parameters `params`: the class
+        itself, unless `params` call for another (Omega-SS estimates its omega given `env`)."""
         return cls
 
     @classmethod

@@ -70,12 +70,6 @@ def strategy_class(name: Any) -> type[StartStrategy]:
     return STRATEGIES[name]
 
 
-def __getattr__(name: str) -> Any:
-    if name == "STRATEGY_NAMES":  # follows later registrations
-        return tuple(STRATEGIES)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
 @dataclass(frozen=True)
 class StrategyParameter:
     """One keyword parameter of a strategy, as its class declares it."""
@@ -92,11 +86,11 @@ class StrategyParameter:
 def strategy_parameters(name: str) -> tuple[StrategyParameter, ...]:
     """The keyword parameters of strategy `name`, in order, with their defaults and docs."""
     cls = strategy_class(name)
-    docs = _args_docs(inspect.getdoc(cls) or "")
-    defaults = {}
-    for constructor in (cls, getattr(cls, "from_env", None)):  # Omega-SS's two constructors
-        if constructor is not None:
-            defaults.update({p.name: p.default for p in inspect.signature(constructor).parameters.values()})
+    docs: dict[str, str] = {}
+    defaults: dict[str, Any] = {}
+    for constructor in cls.constructors():
+        docs = {**_args_docs(inspect.getdoc(constructor) or ""), **docs}  # the first one's docs win
+        defaults = {**{p.name: p.default for p in inspect.signature(constructor).parameters.values()}, **defaults}
     return tuple(StrategyParameter(parameter, defaults.get(parameter, inspect.Parameter.empty),
                                    docs.get(parameter, ""), parameter not in cls.run_supplied)
                  for parameter in cls.parameters())
@@ -138,8 +132,8 @@ def check_strategy_params(name: str, params: Collection[str], from_config: bool 
 
 def make_start_strategy(name: str, states: Any = None, context: StrategyContext | None = None,
                         **params: Any) -> StartStrategy:
-    """Build a registered start strategy by its name: p0, auxss, omega_ss, uniform_ss, goaldist_ss,
-    reverse_ss, or one registered since (`STRATEGIES`).
+    """Build a start strategy by its CLI name: p0, auxss, omega_ss, uniform_ss, goaldist_ss,
+    reverse_ss, or any other registered one (`STRATEGIES`).
 
     `states` is the (n, d) candidate set, of any length d (ignored, and may be None, for p0).
     Parameters are the class's keyword arguments (`strategy_parameters` lists them with their
@@ -171,3 +165,7 @@ def make_start_strategy(name: str, states: Any = None, context: StrategyContext 
 
 for _built_in in (P0Start, AuxSS, OmegaSS, UniformSS, GoalDistSS, ReverseCurriculumSS):
     register(_built_in)
+
+STRATEGY_NAMES = tuple(STRATEGIES)
+"""The names of the strategies registered on import, in the CLI's order (`STRATEGIES` also holds those
+registered later)."""

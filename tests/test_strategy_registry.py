@@ -227,7 +227,7 @@ def test_the_registry_lists_exactly_the_strategies_the_cli_accepts():
                 if method.learner == "sac" and method.demos == "none"}
     assert set(sac_from) == set(STRATEGIES) == {method.start for method in METHODS.values()}
     assert all(sac_from[name] in choices for name in STRATEGIES)
-    assert strategy_registry.STRATEGY_NAMES == tuple(STRATEGIES)
+    assert strategy_registry.STRATEGY_NAMES == tuple(STRATEGIES)  # nothing registered but on import
 
 
 @pytest.mark.parametrize("name", list(STRATEGIES))
@@ -272,7 +272,6 @@ def test_a_new_strategy_is_one_class_and_one_registration(monkeypatch):
     np.testing.assert_allclose(toy.probabilities, np.r_[4.0, np.ones(8)] / 12.0, rtol=1e-12)
     assert make_start_strategy("toy_ss", states).settings == {"first_weight": 2.0}
     assert [(p.name, p.default) for p in strategy_parameters("toy_ss")] == [("first_weight", 2.0)]
-    assert "toy_ss" in strategy_registry.STRATEGY_NAMES
     with pytest.raises(ValueError, match=r"unknown parameters \['first'\] for start strategy 'toy_ss'; "
                                          r"it accepts \['first_weight'\]"):
         make_start_strategy("toy_ss", states, first=4.0)
