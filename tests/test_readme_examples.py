@@ -66,3 +66,12 @@ def test_the_stable_baselines3_example_trains_through_auxss_start_states(tmp_pat
         r"most likely start ([0-9.]+), least likely ([0-9.]+) \(uniform: ([0-9.]+)\)", out).groups())
     assert uniform == pytest.approx(1 / 150, abs=1e-4)  # the benchmark's 150 candidate states
     assert most > uniform > least, "AuxSS's weights never moved: SB3's episodes were not fed back"
+
+
+def test_the_start_strategies_example_runs_them_on_hopper_states(tmp_path):
+    out = run_example("docs/start-strategies.md", "## On a task of any kind", tmp_path)
+    weights = dict(re.findall(r"^(\w+): 58-D states, weights from ([0-9.]+) to 1\.000$", out, re.M))
+    assert set(weights) == {"auxss", "goaldist_ss"}, out
+    # AuxSS's weights moved below 1 where the short random-policy episodes started; GoalDist-SS's
+    # weights fall away from the state furthest forward
+    assert 0.0 < float(weights["auxss"]) < 1.0 and 0.0 < float(weights["goaldist_ss"]) < 1.0
