@@ -96,11 +96,19 @@ def private_calls_on_other_objects(tree: ast.AST) -> list[str]:
     return found
 
 
+FOREIGN_ADAPTERS = {"reset_to_state.py": {"_get_obs", "_get_reset_info"}}
+"""ResetToState's adapters compute other projects' envs' observations for a restored state: those envs
+offer no public way to, so the adapters call the envs' own observation functions, and only those."""
+
+
 def test_no_module_of_the_env_calls_private_methods_of_another_object():
     """The envs share the task through its public methods only."""
     offenders = {path.name: calls for path in sorted(PACKAGE.glob("*.py"))
                  if (calls := private_calls_on_other_objects(ast.parse(path.read_text())))}
+    adapters = {name: offenders.pop(name) for name in FOREIGN_ADAPTERS if name in offenders}
     assert offenders == {}
+    for name, calls in adapters.items():
+        assert {call.rsplit(".", 1)[-1] for call in calls} <= FOREIGN_ADAPTERS[name], calls
 
 
 def same_steps(a, b):

@@ -10,6 +10,7 @@ import math
 import struct
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -164,9 +165,21 @@ def test_log_videos_writes_each_evaluations_rollouts(tmp_path):
         assert reader.count_frames() > 2 and reader.get_data(0).shape == (32, 64, 3)
 
 
-def wandb_records(run_dir):
+def wandb_records(run_dir, wait=30.0):
     """The run record and the history ({step: {key: value}}) of each offline W&B run in RUN_DIR/wandb, read
-    from the .wandb file W&B wrote: records framed as in LevelDB's log (32 KiB blocks, 7-byte headers:
+    from the .wandb file W&B wrote. W&B's service process may still be flushing the file when the run has
+    returned on a loaded machine, so the files are read again until every one holds its run record, for at
+    most `wait` seconds."""
+    deadline = time.monotonic() + wait
+    while True:
+        found = _wandb_records(run_dir)
+        if all(run is not None for run, _ in found) or time.monotonic() > deadline:
+            return found
+        time.sleep(0.5)
+
+
+def _wandb_records(run_dir):
+    """One reading of `wandb_records`: records framed as in LevelDB's log (32 KiB blocks, 7-byte headers:
     checksum, length, type 1 full, 2 first, 3 middle, 4 last) after a 7-byte file header."""
     from wandb.proto import wandb_internal_pb2
 
