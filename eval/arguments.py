@@ -256,15 +256,23 @@ def stopping_on_signals():
     before it are restored after). SIGINT is set explicitly too: a process a script starts in the
     background inherits SIGINT ignored, Python then leaves it ignored, and Ctrl-C or `kill -INT` would
     be lost. Commands enter it first thing, so a signal during their start-up stops them too."""
+    with handling_signals(raise_keyboard_interrupt):
+        yield
+
+
+@contextmanager
+def handling_signals(handler):
+    """While the block runs, SIGINT and SIGTERM call `handler(signum, frame)` (main thread only: elsewhere
+    signals cannot be handled and the block runs as it is); the handlers before it are restored after."""
     if not in_main_thread():
         yield
         return
-    previous = {sig: signal.signal(sig, raise_keyboard_interrupt) for sig in (signal.SIGINT, signal.SIGTERM)}
+    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        for sig, old in previous.items():
+            signal.signal(sig, old)
 
 
 def in_main_thread() -> bool:

@@ -19,9 +19,7 @@ equals one trained to it in one go (`RunConfig.continues`).
 from __future__ import annotations
 
 import dataclasses
-import signal
 import sys
-import threading
 import time
 from collections.abc import Sequence
 from contextlib import ExitStack, contextmanager
@@ -36,7 +34,7 @@ from lava_bridge_mj.agents.methods import METHODS, learner_class
 from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
 from lava_bridge_mj.agents.seed_batch import stack_batches
 from lava_bridge_mj.checks import check_integer
-from lava_bridge_mj.eval.arguments import Interrupted, format_seeds, stop_reason
+from lava_bridge_mj.eval.arguments import Interrupted, format_seeds, handling_signals, stop_reason
 from lava_bridge_mj.eval.config import RunConfig, check_batch_fits
 from lava_bridge_mj.eval.evaluate import EVAL_STARTS, MAX_EVAL_ENVS, evaluate
 from lava_bridge_mj.eval.provenance import code_provenance
@@ -147,21 +145,13 @@ class Run:
     def _stop_on_signals(self):
         """SIGINT/SIGTERM ask the loop to checkpoint and stop after the current step; a second signal
         stops at once, losing only the work since the last checkpoint."""
-        if threading.current_thread() is not threading.main_thread():
-            yield
-            return
-
         def request_stop(signum, frame):
             if self.stop_signal is not None:
                 raise Interrupted(signum)
             self.stop_signal = signum
 
-        previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
-        try:
+        with handling_signals(request_stop):
             yield
-        finally:
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
 
     def _train(self, progress: bool | Path) -> None:
         config, seed_runs = self.config, self.seed_runs
