@@ -7,6 +7,11 @@ there and marked truncated. LavaBridge-v0's are `assets/demos_500.npz` and `asse
 `assets/demos.json` records, per task and size, the file, seed, episode count and a SHA-256 of the
 arrays; `python -m lava_bridge_mj demos --check` regenerates every set and compares them bit for bit.
 
+`record_demos(env, policy, n_transitions, seed)` records a set the same way on any env that
+`ResetToState` serves, with any policy, adding each transition's full state (`states`) and the env's
+id (`env_id`): the demonstrations of a task that ships none. `save_demos` writes a set, `load_demos(path=...)`
+reads it back.
+
 `load_demos(..., format="d4rl")` gives a set under D4RL's names (terminals, timeouts), and
 `to_minari(size, env_id)` (`python -m lava_bridge_mj demos --minari`) writes it as a local Minari
 dataset, one Minari episode per expert episode (needs the `minari` extra).
@@ -46,7 +51,7 @@ def demo_file(env_id: str, size: int) -> str:
     """The asset file name of a task's shipped set (LavaBridge-v0 keeps its original names)."""
     return f"demos_{size}.npz" if env_id == DEFAULT_ENV_ID else f"demos_{env_id}_{size}.npz"
 
-FIELDS = {  # name: (dtype, per-transition shape)
+FIELDS = {  # name: (dtype, per-transition shape on Lava Bridge; other envs have their own dims)
     "observations": (np.float64, (4,)),
     "actions": (np.float32, (2,)),
     "rewards": (np.float64, ()),
@@ -54,6 +59,11 @@ FIELDS = {  # name: (dtype, per-transition shape)
     "terminations": (np.bool_, ()),
     "truncations": (np.bool_, ()),
     "episode_ids": (np.int32, ()),
+}
+OPTIONAL_FIELDS = {  # name: dtype; what `record_demos` adds, absent from the shipped sets
+    "states": np.float64,  # (n, state size): ResetToState's info["state"] before each transition
+    "successes": np.bool_,  # (n,): the env's info["success"] or info["is_success"] after it, where it reports one
+    "env_id": np.str_,  # (): the gymnasium id of the env recorded on
 }
 
 
@@ -82,10 +92,72 @@ def generate_demos(size: int, seed: int, env: LavaBridgeEnv | None = None) -> di
     return {name: np.asarray(values, dtype=FIELDS[name][0]) for name, values in columns.items()}
 
 
+def record_demos(env: gymnasium.Env, policy, n_transitions: int, seed: int) -> dict[str, np.ndarray]:
+    """Roll out `policy` in `env` until exactly `n_transitions` transitions are recorded, as
+    `generate_demos` does: whole episodes, the first reset seeded with `seed`, the last episode cut at
+    the set size and marked truncated.
+
+    `env` is any env that `lava_bridge_mj.ResetToState` serves (it is wrapped if it is not already);
+    `policy` maps the env's observation to an action: a callable, or a model with
+    `.predict(obs, deterministic=True)` (stable-baselines3's). Returns the demo format of `load_demos`
+    (observations flattened in `gymnasium.spaces.flatten` order, float64; actions as the env took
+    them, float32) plus `states`, the full state before each transition (ResetToState's
+    `info["state"]`), `env_id`, the env's gymnasium id (its spec's; "" for an env made without one),
+    and `successes`, the env's `info["success"]` or `info["is_success"]` after each step, only where
+    the env reports one.
+    """
+    from lava_bridge_mj.reset_to_state import ResetToState
+
+    if not (isinstance(n_transitions, (int, np.integer)) and not isinstance(n_transitions, bool) and n_transitions >= 1):
+        raise ValueError(f"n_transitions must be a positive integer, got {n_transitions!r}")
+    if not (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0):
+        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+    if hasattr(policy, "predict"):
+        model = policy
+        policy = lambda obs: model.predict(obs, deterministic=True)[0]  # noqa: E731
+    elif not callable(policy):
+        raise ValueError(f"policy must be a callable obs -> action or have .predict(obs, deterministic=True), "
+                         f"got {policy!r}")
+    wrapped = env
+    while isinstance(wrapped, gymnasium.Wrapper) and not isinstance(wrapped, ResetToState):
+        wrapped = wrapped.env
+    if not isinstance(wrapped, ResetToState):
+        env = ResetToState(env)
+    space = env.observation_space
+    columns: dict[str, list] = {name: [] for name in (*FIELDS, "states", "successes")}
+    episode, reports_success = 0, False
+    obs, info = env.reset(seed=int(seed))
+    while len(columns["observations"]) < n_transitions:
+        while True:
+            action = np.asarray(policy(obs), dtype=env.action_space.dtype)
+            next_obs, reward, terminated, truncated, next_info = env.step(action)
+            full = len(columns["observations"]) + 1 == n_transitions
+            truncated = not terminated and (bool(truncated) or full)
+            success = next_info.get("success", next_info.get("is_success"))
+            reports_success |= success is not None
+            for name, value in zip(columns, (gymnasium.spaces.flatten(space, obs), action, reward,
+                                             gymnasium.spaces.flatten(space, next_obs), terminated, truncated,
+                                             episode, info["state"], bool(success))):
+                columns[name].append(value)
+            obs, info = next_obs, next_info
+            if terminated or truncated:
+                break
+        episode += 1
+        obs, info = env.reset()
+    dtypes = {**{name: dtype for name, (dtype, _) in FIELDS.items()}, **OPTIONAL_FIELDS}
+    demos = {name: np.asarray(values, dtype=dtypes[name]) for name, values in columns.items()}
+    if not reports_success:
+        del demos["successes"]
+    spec = env.unwrapped.spec if env.spec is None else env.spec
+    demos["env_id"] = np.array("" if spec is None else spec.id)
+    return demos
+
+
 def content_hash(demos: dict[str, np.ndarray]) -> str:
-    """SHA-256 over every field's name, dtype, shape and bytes, in a fixed order."""
+    """SHA-256 over every field's name, dtype, shape and bytes, in a fixed order (the optional fields
+    last, where present: a set without them hashes as it always has)."""
     digest = hashlib.sha256()
-    for name in FIELDS:
+    for name in (*FIELDS, *(name for name in OPTIONAL_FIELDS if name in demos)):
         array = np.ascontiguousarray(demos[name])
         digest.update(f"{name}|{array.dtype.str}|{array.shape}|".encode())
         digest.update(array.tobytes())
@@ -93,6 +165,7 @@ def content_hash(demos: dict[str, np.ndarray]) -> str:
 
 
 def save_demos(demos: dict[str, np.ndarray], path: str | Path) -> None:
+    """Write a demo set (`generate_demos`'s or `record_demos`'s) to the .npz file `path`, atomically."""
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
     with open(tmp, "wb") as f:
@@ -101,18 +174,41 @@ def save_demos(demos: dict[str, np.ndarray], path: str | Path) -> None:
 
 
 def check_demos(demos: dict[str, np.ndarray], source: str) -> None:
-    """Raise ValueError naming `source` and the problem unless `demos` is a well-formed demo set."""
+    """Raise ValueError naming `source` and the problem unless `demos` is a well-formed demo set.
+
+    A set recorded on another env (its `env_id` not a Lava Bridge task) has that env's observation
+    and action sizes; every other set has Lava Bridge's (4 and 2)."""
     missing = set(FIELDS) - set(demos)
     if missing:
         raise ValueError(f"demo file {source} lacks fields {sorted(missing)}")
+    unknown = set(demos) - set(FIELDS) - set(OPTIONAL_FIELDS)
+    if unknown:
+        raise ValueError(f"demo file {source} has unknown fields {sorted(unknown)}; expected {list(FIELDS)} "
+                         f"and optionally {list(OPTIONAL_FIELDS)}")
+    env_id = demos.get("env_id")
+    if env_id is not None and (env_id.dtype.kind != "U" or env_id.shape != ()):
+        raise ValueError(f"demo file {source}: field 'env_id' must be one string, got {env_id!r}")
+    foreign = env_id is not None and str(env_id) not in TASKS
     n = len(demos["observations"])
-    for name, (dtype, shape) in FIELDS.items():
+    shapes = {name: shape for name, (_, shape) in FIELDS.items()}
+    if foreign:  # another env's sizes, the same in every transition
+        shapes.update(observations=demos["observations"].shape[1:], next_observations=demos["observations"].shape[1:],
+                      actions=demos["actions"].shape[1:])
+        if len(shapes["observations"]) != 1 or len(shapes["actions"]) != 1:
+            raise ValueError(f"demo file {source}: observations and actions must be (n, size) arrays, got shapes "
+                             f"{demos['observations'].shape} and {demos['actions'].shape}")
+    if "states" in demos:
+        shapes["states"] = demos["states"].shape[1:] if demos["states"].ndim == 2 else (-1,)
+    if "successes" in demos:
+        shapes["successes"] = ()
+    dtypes = {**{name: dtype for name, (dtype, _) in FIELDS.items()}, **OPTIONAL_FIELDS}
+    for name, shape in shapes.items():
         array = demos[name]
-        if array.dtype != dtype or array.shape != (n, *shape):
+        if array.dtype != dtypes[name] or array.shape != (n, *shape):
             raise ValueError(f"demo file {source}: field {name!r} has dtype {array.dtype} and shape "
-                             f"{array.shape}; expected {np.dtype(dtype)} and {(n, *shape)}")
-    for name in ("observations", "actions", "rewards", "next_observations"):
-        if not np.isfinite(demos[name]).all():
+                             f"{array.shape}; expected {np.dtype(dtypes[name])} and {(n, *shape)}")
+    for name in ("observations", "actions", "rewards", "next_observations", "states"):
+        if name in demos and not np.isfinite(demos[name]).all():
             raise ValueError(f"demo file {source}: field {name!r} has non-finite values")
 
 
@@ -121,7 +217,8 @@ def load_demos(size: int = 500, path: str | Path | None = None, env_id: str = DE
     """A task's shipped demo set by size (500 or 7500), or a file written by `save_demos` at `path`.
 
     `env_id` names the task (`lava_bridge_mj.TASKS`; LavaBridge-v0 by default); it is ignored with
-    `path`. Returns a dict of arrays, one row per transition: observations, actions, rewards,
+    `path`. A file of `record_demos` also holds `states`, `env_id` and maybe `successes` (see there);
+    it is checked for consistent fields, its `env_id` read as a str. Returns a dict of arrays, one row per transition: observations, actions, rewards,
     next_observations, terminations, truncations, episode_ids (Gymnasium's names). With
     `format="d4rl"`, D4RL's: observations, actions, rewards, next_observations, terminals, timeouts,
     as D4RL loaders (d3rlpy, CORL) read them; `timeouts` marks every episode end that is not a
@@ -159,6 +256,8 @@ def load_demos(size: int = 500, path: str | Path | None = None, env_id: str = DE
     if expected is not None and content_hash(demos) != expected:
         raise ValueError(f"demo file {source} is corrupt: its content hash differs from the one "
                          f"recorded in {MANIFEST}; reinstall the package or regenerate it")
+    if "env_id" in demos:
+        demos["env_id"] = str(demos["env_id"])
     if format == "d4rl":
         return {D4RL_NAMES.get(name, name): array for name, array in demos.items() if name != "episode_ids"}
     return demos
