@@ -35,13 +35,16 @@ SOLVED_DEMO_WEIGHT = 1e-6
 that, once every demonstration reached 0, they are still drawn (equally) until each is solved."""
 
 
-def goal_reaching_demos(demos: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """The states and episode ids of a demo set's episodes that end at the goal, in time order.
+def goal_reaching_demos(demos: dict[str, np.ndarray], states: str = "observations") -> tuple[np.ndarray, np.ndarray]:
+    """The states (the field `states` of the set) and episode ids of a demo set's episodes that end at
+    the goal, in time order.
 
     A shipped set's last episode is cut at the set's size and never reaches the goal, so its last
     state is no place to start a reverse curriculum; RFCL likewise skips failed demonstrations. An
-    episode ends at the goal when its last transition terminated with a reward above the episode's
-    others (the goal's +1 against 0: lava would end it on 0).
+    episode ends at the goal when its last transition reports success (`successes`, in a set that
+    `record_demos` recorded on an env that reports it); in a set without them, when its last
+    transition terminated with a reward above the episode's others (the goal's +1 against 0: lava
+    would end it on 0).
     """
     ids = np.asarray(demos["episode_ids"])
     keep = np.zeros(len(ids), dtype=bool)
@@ -49,9 +52,13 @@ def goal_reaching_demos(demos: dict[str, np.ndarray]) -> tuple[np.ndarray, np.nd
         rows = np.flatnonzero(ids == episode)
         last = rows[-1]
         rewards = demos["rewards"][rows]
-        if demos["terminations"][last] and rewards[-1] > rewards[:-1].max(initial=-np.inf):
+        if "successes" in demos:
+            reached = bool(demos["successes"][last])
+        else:
+            reached = demos["terminations"][last] and rewards[-1] > rewards[:-1].max(initial=-np.inf)
+        if reached:
             keep[rows] = True
-    return demos["observations"][keep], ids[keep]
+    return demos[states][keep], ids[keep]
 
 
 def forward_scores(outcomes: list[list[bool]]) -> np.ndarray:

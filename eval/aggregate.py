@@ -83,8 +83,10 @@ class RunRecord:
         return str(self.config.get("method", "?"))
 
     @property
-    def demos(self) -> int:
-        return int(self.config.get("demos", 500))
+    def demos(self) -> int | str:
+        """The shipped set's size, or a demo file's path."""
+        demos = self.config.get("demos", 500)
+        return demos if isinstance(demos, str) else int(demos)
 
     @property
     def task(self) -> str:
@@ -112,7 +114,8 @@ def find_runs(root: str | Path, budget: float | None = None, seeds: Collection[i
         if not (directory / "metrics.csv").is_file():
             continue
         config = read_config(directory)  # ValueErrors name the file
-        for key, kind, what in (("seed", int, "an integer"), ("demos", int, "an integer"), ("method", str, "a name")):
+        for key, kind, what in (("seed", int, "an integer"), ("demos", (int, str), "an integer or a demo file's path"),
+                                ("method", str, "a name")):
             if key in config and (not isinstance(config[key], kind) or isinstance(config[key], bool)):
                 raise ValueError(f"{config_file}: {key} must be {what}, got {config[key]!r}")
         _check_run_config(config, config_file)
@@ -148,9 +151,9 @@ def _check_run_config(config: dict[str, Any], config_file: Path) -> None:
             raise ValueError(f"{config_file}: {error}") from None
 
 
-def demos_label(demos: int) -> str:
-    """500 -> '0.5K', 7500 -> '7.5K' (the paper's names of the demo sets)."""
-    return f"{demos / 1000:g}K"
+def demos_label(demos: int | str) -> str:
+    """500 -> '0.5K', 7500 -> '7.5K' (the paper's names of the demo sets); a demo file: its name."""
+    return Path(demos).name if isinstance(demos, str) else f"{demos / 1000:g}K"
 
 
 def _flatten(values: dict[str, Any], prefix: str = "") -> dict[str, str]:
@@ -179,7 +182,7 @@ class Group:
     that set it apart from other groups of the same task, method and demo set; empty when there are none."""
 
     method: str
-    demos: int
+    demos: int | str
     settings: dict[str, str]
     runs: list[RunRecord]
     task: str = DEFAULT_ENV_ID
@@ -251,7 +254,8 @@ def group_runs(runs: list[RunRecord]) -> list[Group]:
     # the study's tasks in SUITE's order (easy to hard), then the other registered ones
     tasks = {task: i for i, task in enumerate(dict.fromkeys((*SUITE, *TASKS)))}
     groups.sort(key=lambda g: (tasks.get(g.task, len(tasks)), g.task, order.get(g.method, len(order)), g.method,
-                               g.demos, g.label))
+                               (isinstance(g.demos, str), str(g.demos) if isinstance(g.demos, str) else g.demos),
+                               g.label))
     return groups
 
 

@@ -152,6 +152,16 @@ def read_config_file(path: Path | None, parser: argparse.ArgumentParser) -> dict
     return values
 
 
+def demo_set(text: str) -> int | str:
+    """A demo set: a shipped set's size (500 or 7500), or the path of a demo file that exists."""
+    if text.strip() in ("500", "7500"):
+        return int(text)
+    if not Path(text).expanduser().is_file():
+        raise argparse.ArgumentTypeError(f"demos must be 500 or 7500 (a shipped set) or the path of a demo file "
+                                         f"(lava_bridge_mj.save_demos); {text!r} is neither")
+    return text
+
+
 def comma_list(text: str) -> tuple[str, ...]:
     """`a,b` -> ("a", "b"), blanks dropped."""
     return tuple(part.strip() for part in text.split(",") if part.strip())

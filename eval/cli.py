@@ -68,12 +68,16 @@ def build_parser(prog: str = "lava-bridge-bench") -> argparse.ArgumentParser:
                        help="train several seeds together in one process (stacked networks, one batched "
                             "update for all), e.g. 0-24 or 0,3,5-7; each seed writes the run directory it "
                             "would write alone, OUT/seedS")
-    parser.add_argument("--env", dest="env_id", metavar="ID", choices=TASK_IDS,
-                        help=f"the task, one of {', '.join(TASK_IDS)} (default: {DEFAULTS.env_id})")
+    parser.add_argument("--env", dest="env_id", metavar="ID",
+                        help=f"the task, one of {', '.join(TASK_IDS)} (default: {DEFAULTS.env_id}), or any "
+                             f"gymnasium id of a MuJoCo env that lava_bridge_mj.ResetToState serves (e.g. "
+                             f"Hopper-v5), with --demos PATH (docs/any-env.md)")
     parser.add_argument("--steps", type=arguments.positive_int,
                         help=f"online env steps (default: {DEFAULTS.steps}; the paper's protocol: 300000)")
-    parser.add_argument("--demos", type=int, choices=(500, 7500),
-                        help=f"shipped demo set the candidate start states come from (default: {DEFAULTS.demos})")
+    parser.add_argument("--demos", type=arguments.demo_set, metavar="500|7500|PATH",
+                        help=f"demo set the candidate start states come from: a shipped set, 500 or 7500 (default: "
+                             f"{DEFAULTS.demos}), or a demo file (lava_bridge_mj.save_demos), whose path and "
+                             f"content hash config.json records")
     parser.add_argument("--eval-every", type=arguments.positive_int,
                         help=f"evaluate, snapshot the policy and checkpoint every this many steps "
                              f"(default: {DEFAULTS.eval_every})")
@@ -169,6 +173,8 @@ def _train_command(argv: list[str], prog: str) -> int:
     parser = build_parser(prog)
     args = parser.parse_args(argv)
     config = _config_from(args, parser)
+    if (args.video or args.log_videos) and not config.lava_bridge:
+        parser.error(f"--video and --log-videos draw Lava Bridge's p0 and ood rollouts; {config.env_id} is another env")
     try:
         tracking.check_sinks(args.log)
     except ValueError as error:

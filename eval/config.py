@@ -8,7 +8,10 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from pathlib import Path
 from typing import Any
+
+import gymnasium
 
 import lava_bridge_mj
 from lava_bridge_mj.agents.checks import check_fits_in_memory, check_integer, check_number
@@ -45,13 +48,20 @@ class RunConfig:
     (a guide learned from the demos acts first in each episode), or an offline method trained on the demo
     transitions alone (bc, iql)."""
     env_id: str = lava_bridge_mj.ENV_ID
-    """The task, an id of `lava_bridge_mj.TASKS`: its layout, its p0 and ood starts, and its shipped demos."""
+    """The task: an id of `lava_bridge_mj.TASKS` (its layout, its p0 and ood starts, and its shipped
+    demos), or any other gymnasium id whose env `lava_bridge_mj.ResetToState` serves (Hopper-v5, ...),
+    which trains from a demo file recorded on it (`demos` a path; docs/any-env.md)."""
     seed: int = 0
     """Seeds the networks, the env, the start strategy, the replay sampling and the demo subset."""
     steps: int = 50_000
     """Online environment steps (offline methods: gradient steps on the demo transitions)."""
-    demos: int = 500
-    """Which shipped demo set the candidate start states (and HySAC's offline transitions) come from (500 or 7500)."""
+    demos: int | str = 500
+    """Which demo set the candidate start states (and HySAC's offline transitions) come from: a shipped
+    set (500 or 7500), or the path of a demo file (`lava_bridge_mj.save_demos`), kept as an absolute
+    path. An env that is not a Lava Bridge task starts from the file's full `states`."""
+    demos_sha256: str | None = None
+    """The content hash (`content_hash`) of the demo file `demos` names, filled in from the file; kept
+    in config.json, so that a resume refuses a file that changed. None for a shipped set."""
     demo_subset: int = 150
     """Candidate start states: a seeded random subset of this many demo states (the paper's 150),
     the same set for every start strategy so that they differ only in how they sample it (reverse_ss
@@ -75,7 +85,8 @@ class RunConfig:
     """JSRL's guide and curriculum (jsrl); its learner uses `sac`."""
     env: dict[str, Any] = dataclasses.field(default_factory=dict)
     """Keyword arguments of the env, for training and evaluation alike (e.g. {"lava_reward": 0.0} or
-    Layout fields such as {"bridge_width": 0.4}); the candidate states still come from the shipped demos."""
+    Layout fields such as {"bridge_width": 0.4}; `gymnasium.make`'s for another env); the candidate
+    states still come from the demos."""
 
     def __post_init__(self) -> None:
         for name, section in AGENT_CONFIGS.items():
@@ -91,24 +102,112 @@ class RunConfig:
         self.seed = check_integer("seed", self.seed, 0, MAX_SEED)
         self.eval_episodes = check_integer("eval_episodes", self.eval_episodes, 1, MAX_EVAL_EPISODES)
         self.hybrid_fraction = check_number("hybrid_fraction", self.hybrid_fraction, 0, 1, low_inclusive=True)
-        if self.demos not in (500, 7500):
-            raise ValueError(f"demos must be 500 or 7500, got {self.demos!r}")
-        if not isinstance(self.env_id, str) or self.env_id not in lava_bridge_mj.TASKS:
-            raise ValueError(f"unknown env_id {self.env_id!r}; expected one of {list(lava_bridge_mj.TASKS)}")
+        if isinstance(self.demos, Path):
+            self.demos = str(self.demos)
+        if isinstance(self.demos, str):
+            self.demos = str(Path(self.demos).expanduser().resolve())
+        elif self.demos not in (500, 7500) or isinstance(self.demos, bool):
+            raise ValueError(f"demos must be 500 or 7500 (a shipped set) or the path of a demo file, got {self.demos!r}")
+        if not isinstance(self.env_id, str) or not self.env_id:
+            raise ValueError(f"env_id must be a gymnasium id, got {self.env_id!r}")
+        if not self.lava_bridge:
+            try:
+                gymnasium.spec(self.env_id)
+            except gymnasium.error.Error as error:
+                raise ValueError(f"unknown env_id {self.env_id!r}: neither a Lava Bridge task "
+                                 f"({list(lava_bridge_mj.TASKS)}) nor a registered gymnasium id ({error})") from None
+            if not isinstance(self.demos, str):
+                raise ValueError(f"env_id {self.env_id!r} is not a Lava Bridge task ({list(lava_bridge_mj.TASKS)}), "
+                                 f"which ships no demos: give demos the path of a demo file recorded on it "
+                                 f"(lava_bridge_mj.record_demos)")
         if not isinstance(self.env, dict):
-            raise ValueError(f"env must be a dict of LavaBridgeEnv keyword arguments, got {self.env!r}")
+            raise ValueError(f"env must be a dict of the env's keyword arguments, got {self.env!r}")
         try:
-            self.make_env().close()  # refuse bad env arguments before any work
+            env = self.make_env()  # refuse bad env arguments before any work
         except (TypeError, ValueError) as error:
             raise ValueError(f"env: {error}") from None
+        try:
+            if isinstance(self.demos, str) and self.demos_sha256 is None:  # a new run: read and check the file
+                from lava_bridge_mj.demos import content_hash
+
+                self.demos_sha256 = content_hash(self.load_demos(env))
+            elif self.demos_sha256 is not None and not isinstance(self.demos, str):
+                raise ValueError(f"demos_sha256 goes with a demo file's path, not with the shipped set {self.demos}")
+        finally:
+            env.close()
+
+    @property
+    def lava_bridge(self) -> bool:
+        """True when `env_id` is a Lava Bridge task, False for any other gymnasium env."""
+        return self.env_id in lava_bridge_mj.TASKS
+
+    def load_demos(self, env: Any = None) -> dict[str, Any]:
+        """The run's demo set (`load_demos`): the shipped set, or the file `demos`, checked against the
+        run's env (`env`: one of it, made here when not given) and its recorded `demos_sha256`;
+        ValueError naming what does not fit."""
+        from lava_bridge_mj.demos import content_hash
+
+        if not isinstance(self.demos, str):
+            return lava_bridge_mj.load_demos(self.demos, env_id=self.env_id)
+        demos = lava_bridge_mj.load_demos(path=self.demos)
+        source = f"demo file {self.demos}"
+        recorded_on = demos.get("env_id")
+        if recorded_on != self.env_id and (recorded_on is not None or not self.lava_bridge):
+            raise ValueError(f"{source} was recorded on {recorded_on or 'an env it does not name'}, not on "
+                             f"{self.env_id}: record demos on {self.env_id} (lava_bridge_mj.record_demos)")
+        if not self.lava_bridge and "states" not in demos:
+            raise ValueError(f"{source} has no 'states' (the full state of each transition) to start "
+                             f"{self.env_id}'s episodes from: record it with lava_bridge_mj.record_demos")
+        if self.demos_sha256 is not None and content_hash(demos) != self.demos_sha256:
+            raise ValueError(f"{source} changed since this run began: its content hash is {content_hash(demos)}, "
+                             f"the run recorded {self.demos_sha256}; restore that file or train a new run")
+        made = env is None
+        env = self.make_env() if made else env
+        try:
+            obs_dim, act_dim = self.dims(env)
+            sizes = [("observations", demos["observations"].shape[1], obs_dim),
+                     ("actions", demos["actions"].shape[1], act_dim)]
+            if not self.lava_bridge:
+                sizes.append(("states", demos["states"].shape[1], env.state_size))
+            for name, found, expected in sizes:
+                if found != expected:
+                    raise ValueError(f"{source}: its {name} have {found} numbers, {self.env_id}'s {expected}")
+        finally:
+            if made:
+                env.close()
+        return demos
+
+    def dims(self, env: Any = None) -> tuple[int, int]:
+        """(observation size, action size) of what the learners see: flattened observations, actions."""
+        if self.lava_bridge:
+            return 4, 2
+        env = self.make_env() if env is None else env
+        return int(gymnasium.spaces.flatdim(env.observation_space)), int(env.action_space.shape[0])
 
     def env_kwargs(self) -> dict[str, Any]:
-        """LavaBridgeEnv's (and LavaBridgeVectorEnv's) keyword arguments: the task's layout, then `env`."""
+        """LavaBridgeEnv's (and LavaBridgeVectorEnv's) keyword arguments: the task's layout, then `env`
+        (another env's: `env`, gymnasium.make's)."""
+        if not self.lava_bridge:
+            return dict(self.env)
         return {"layout": lava_bridge_mj.task_layout(self.env_id), **self.env}
 
-    def make_env(self, **kwargs: Any) -> lava_bridge_mj.LavaBridgeEnv:
-        """The run's task as a single env (`kwargs` e.g. render_mode)."""
+    def make_env(self, **kwargs: Any) -> Any:
+        """The run's task as a single env (`kwargs` e.g. render_mode): a LavaBridgeEnv, or another env
+        as `ResetToState(gymnasium.make(env_id, ...))`."""
+        if not self.lava_bridge:
+            from lava_bridge_mj.state_vector import make_state_env
+
+            return make_state_env(self.env_id, **self.env_kwargs(), **kwargs)
         return lava_bridge_mj.LavaBridgeEnv(**self.env_kwargs(), **kwargs)
+
+    def make_vector_env(self, num_envs: int) -> Any:
+        """`num_envs` episodes of the run's task in one vector env: a LavaBridgeVectorEnv, or a
+        ResetToStateVectorEnv for another env."""
+        if not self.lava_bridge:
+            from lava_bridge_mj.state_vector import ResetToStateVectorEnv
+
+            return ResetToStateVectorEnv(self.env_id, num_envs, **self.env_kwargs())
+        return lava_bridge_mj.LavaBridgeVectorEnv(num_envs, **self.env_kwargs())
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON values (tuples become lists), as written to config.json."""
@@ -119,11 +218,12 @@ class RunConfig:
         the one field a resume may change, because nothing but the loop's end depends on it, so a
         finished run extended to more steps equals a run trained to them in one go (except where
         `budget_tied`: then `steps` must match too)."""
-        # a config.json from before env_id existed was LavaBridge-v0's, the only task then
+        # a config.json from before env_id existed was LavaBridge-v0's, the only task then; one from
+        # before demo files, a shipped set's
         if not isinstance(saved, dict):
             return False
         steps = saved.get("steps") if self.budget_tied else self.steps
-        return {"env_id": lava_bridge_mj.ENV_ID, **saved, "steps": steps} == self.to_dict()
+        return {"env_id": lava_bridge_mj.ENV_ID, "demos_sha256": None, **saved, "steps": steps} == self.to_dict()
 
     @property
     def budget_tied(self) -> bool:
@@ -174,4 +274,5 @@ def trained_configs(config: RunConfig) -> list:
 def check_batch_fits(config: RunConfig, seeds: int) -> None:
     """ValueError unless `seeds` seeds of `config` fit in memory: checked before anything is built per
     seed, so an impossible batch fails at once instead of minutes later (or in MemoryError)."""
-    check_fits_in_memory(*trained_configs(config), seeds=seeds, obs_dim=4, act_dim=2)
+    obs_dim, act_dim = config.dims()
+    check_fits_in_memory(*trained_configs(config), seeds=seeds, obs_dim=obs_dim, act_dim=act_dim)

@@ -3,9 +3,10 @@ distribution.
 
 Episode i starts where `env.reset(seed=seed + i, options={"start": start})` of a single env starts
 it, so every method, seed and evaluation point is judged on the same start states. Every member's
-episodes (one member is one training seed) run in lockstep in one `LavaBridgeVectorEnv`, each
-stepped by the env's own `LavaBridgeTask`, so the episodes, their terminations (lava or goal at any
-physics step) and the time limit are a single env's. Each step makes one actor call for every member
+episodes (one member is one training seed) run in lockstep in one vector env (`LavaBridgeVectorEnv`,
+each episode stepped by the env's own `LavaBridgeTask`; `ResetToStateVectorEnv` for another env), so
+the episodes, their terminations (lava or goal at any physics step) and the time limit are a single env's.
+An env that reports no success (`envs.reports_success` False) scores its success rate NaN. Each step makes one actor call for every member
 at once, on the episodes still running; a member's deterministic actions are those it gives when
 called on its own episodes alone, bit for bit (see `OWN_CALL_ROWS`).
 """
@@ -18,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from lava_bridge_mj import MAX_EPISODE_STEPS
+from lava_bridge_mj.state_vector import ResetToStateVectorEnv
 from lava_bridge_mj.vector import LavaBridgeVectorEnv
 
 EVAL_SEED = 1_000_000
@@ -38,14 +40,14 @@ of 7 or more units) share one call padded to the largest count, and a member wit
 on exactly its own rows, as when it is evaluated alone (tests/test_batched_eval.py checks both)."""
 
 
-def evaluate(agent: Any, envs: LavaBridgeVectorEnv, start: str, episodes: int,
+def evaluate(agent: Any, envs: LavaBridgeVectorEnv | ResetToStateVectorEnv, start: str, episodes: int,
              members: Sequence[int] | None = None, seed: int = EVAL_SEED,
              horizon: int = MAX_EPISODE_STEPS) -> tuple[dict[int, dict[str, float]], dict[int, str]]:
     """Success rate and mean return of each member's deterministic policy over `episodes` episodes
     from `start`.
 
     `agent` is a seed-batched agent (agents/seed_batch.py): `agent.act(obs, deterministic=True)` maps
-    observations (K, rows, 4) to actions (K, rows, 2), member k acting on obs[k], K = `agent.num_seeds`,
+    observations (K, rows, obs size) to actions (K, rows, action size), member k acting on obs[k], K = `agent.num_seeds`,
     numpy in and out whatever the agent's torch device (one transfer each way per step).
     `members` (default: all K) are evaluated, `envs.num_envs // episodes` of them at a time.
 
@@ -75,7 +77,7 @@ def _evaluate_group(agent, envs: LavaBridgeVectorEnv, start: str, episodes: int,
     in_use = np.arange(envs.num_envs) < total
     seeds = [seed + j % episodes if j < total else None for j in range(envs.num_envs)]
     obs = envs.reset(seed=seeds, options={"start": start, "reset_mask": in_use})[0][:total]
-    task, datas = envs.task, envs.datas
+    act_dim = envs.single_action_space.shape[0]
     running = np.ones(total, dtype=bool)
     returns = np.zeros(total)
     success = np.zeros(total, dtype=bool)
@@ -84,7 +86,7 @@ def _evaluate_group(agent, envs: LavaBridgeVectorEnv, start: str, episodes: int,
         active = np.flatnonzero(running)
         if active.size == 0:
             break
-        actions = _act(agent, obs[active], owner[active])
+        actions = _act(agent, obs[active], owner[active], act_dim)
         finite = np.isfinite(actions).all(axis=1)
         if not finite.all():
             for k in np.unique(owner[active][~finite]):
@@ -93,30 +95,31 @@ def _evaluate_group(agent, envs: LavaBridgeVectorEnv, start: str, episodes: int,
                 running[owner == k] = False
             keep = running[active]
             active, actions = active[keep], actions[keep]
-        for j, action in zip(active.tolist(), actions):
-            reward, lava, reached = task.step(datas[j], action)
+        rewards, ended, reached = envs.step_episodes(active, actions)
+        for j, reward, end, hit in zip(active.tolist(), rewards, ended, reached):
             returns[j] += reward
-            if lava or reached:
+            if end:
                 running[j] = False
-                success[j] = reached
-        obs[active] = task.observations([datas[j] for j in active.tolist()])
+                success[j] = hit
+        obs[active] = envs.episode_observations(active)
     scores = {}
     for g, k in enumerate(members):
         if k in diverged:
             continue
         episodes_of_k = slice(g * episodes, (g + 1) * episodes)
-        scores[k] = {"success": float(success[episodes_of_k].mean()), "return": float(returns[episodes_of_k].mean())}
+        rate = float(success[episodes_of_k].mean()) if envs.reports_success else float("nan")
+        scores[k] = {"success": rate, "return": float(returns[episodes_of_k].mean())}
     return scores, diverged
 
 
-def _act(agent, obs: np.ndarray, owners: np.ndarray) -> np.ndarray:
-    """The deterministic actions (n, 2) for observations `obs` (n, 4), row r acted on by member owners[r]
+def _act(agent, obs: np.ndarray, owners: np.ndarray, act_dim: int = 2) -> np.ndarray:
+    """The deterministic actions (n, act_dim) for observations `obs` (n, obs size), row r acted on by member owners[r]
     (owners sorted, as the sub-envs are): one `agent.act` call for the members with at least
     OWN_CALL_ROWS rows, one per row count below it."""
     members, first, counts = np.unique(owners, return_index=True, return_counts=True)
     position = np.arange(len(owners)) - np.repeat(first, counts)  # each row's place in its member's rows
     calls = [(counts >= OWN_CALL_ROWS, None)] + [(counts == c, c) for c in np.unique(counts[counts < OWN_CALL_ROWS])]
-    actions = np.empty((len(owners), 2), dtype=np.float32)
+    actions = np.empty((len(owners), act_dim), dtype=np.float32)
     for chosen, rows in calls:
         if not chosen.any():
             continue

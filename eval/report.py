@@ -52,6 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
+import lava_bridge_mj
 from lava_bridge_mj.eval.atomic import nearest_existing
 from lava_bridge_mj.eval.aggregate import (BOOTSTRAP_REPS, BOOTSTRAP_SEED, METRICS, THRESHOLD, Group, RunRecord,
                                            find_runs, group_runs, iqm_curves)
@@ -316,10 +317,12 @@ def _task_sections(groups: list[Group], questions: list[Question], curves: dict,
                "SAC trained from each start-state distribution over the demo states (the same random subset of "
                "them for all but reverse_ss, whose candidates are whole demo episodes).",
                f"none of {', '.join(START_STUDY)} has runs here.", START_STUDY)
-    lines.extend(["", f"{heading} The maze and AuxSS's start weights", "",
-                  *_maze_section(groups, threshold, where, out, warnings, prefix + "maze")])
+    maze = groups[0].task in lava_bridge_mj.TASKS  # another env has no maze to draw its start states on
+    if maze:
+        lines.extend(["", f"{heading} The maze and AuxSS's start weights", "",
+                      *_maze_section(groups, threshold, where, out, warnings, prefix + "maze")])
     curricula = benchmark_groups(groups, ("reverse_ss",))
-    if any((run.path / "start_weights.npz").is_file() for g in curricula for run in g.runs):
+    if maze and any((run.path / "start_weights.npz").is_file() for g in curricula for run in g.runs):
         skipped: list[str] = []  # its own, so the AuxSS section's notes are not repeated under it
         lines.extend(["", f"{heading} The reverse curriculum's start states", "",
                       *_maze_section(groups, threshold, where, out, skipped, prefix + "maze_reverse_ss", "reverse_ss"),

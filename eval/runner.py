@@ -4,12 +4,13 @@ atomically, so an interrupted run never leaves a half-written one. The method (a
 decides the learner, the start strategy and how the demos are used; this loop reads only that.
 
 K seeds of one configuration train together in one process (`train(config, dirs, seeds=...)`): one
-`SAC` with stacked networks updates all of them in one batched step, and one `LavaBridgeVectorEnv`
-steps their episodes (sub-env i is seed i's, reset to the starts its strategy chooses), each seed with
-its own start strategy, replay buffer, RNGs and directory. A seed's files are the same as if it had trained
+`SAC` with stacked networks updates all of them in one batched step, and one vector env
+(`LavaBridgeVectorEnv`; `ResetToStateVectorEnv` for any other MuJoCo gymnasium env) steps their
+episodes (sub-env i is seed i's, reset to the starts its strategy chooses), each seed with its own
+start strategy, replay buffer, RNGs and directory. A seed's files are the same as if it had trained
 alone (tests/test_runner.py checks it), and its checkpoint holds only its own state, so it can be
 resumed alone or in another batch. The seeds of a batch checkpoint together after each evaluation,
-mid-episode (the physics state (qpos, qvel) and the episode's step count are saved, and restoring
+mid-episode (the physics state (qpos, qvel; another env's full state) and the episode's step count are saved, and restoring
 them replays the uninterrupted run exactly). A kill between two seeds' checkpoint writes leaves
 some seeds one checkpoint ahead; each keeps the previous one too, and a resume picks the newest step
 every seed of the batch has. A resume may raise `steps`: a finished run extended to a larger budget
@@ -28,7 +29,6 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-import lava_bridge_mj
 from lava_bridge_mj.agents.jsrl import JSRLGuide
 from lava_bridge_mj.agents.methods import METHODS, learner_class
 from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
@@ -44,7 +44,6 @@ from lava_bridge_mj.eval.run_files import (CHECKPOINTS, VIDEOS, DamagedFileError
 from lava_bridge_mj.eval.seed_run import SeedRun
 from lava_bridge_mj.eval.tracking import (TRAIN_LOG_EVERY, ProgressReport, check_sinks, open_sink,
                                           training_scalars, wandb_settings)
-from lava_bridge_mj.vector import LavaBridgeVectorEnv
 
 
 class RunInterrupted(Exception):
@@ -59,7 +58,8 @@ def make_agent(config: RunConfig, seeds: Sequence[int], learner: str | None = No
     """The method's learner (or the learner called `learner`: JSRL's guide) for `seeds`, stacked in one
     agent on the torch `device`."""
     learner = learner or METHODS[config.method].learner
-    return learner_class(learner)(4, 2, getattr(config, learner), seeds=seeds, device=device)
+    obs_dim, act_dim = config.dims()
+    return learner_class(learner)(obs_dim, act_dim, getattr(config, learner), seeds=seeds, device=device)
 
 
 def demo_buffer(config: RunConfig) -> ReplayBuffer:
@@ -67,12 +67,21 @@ def demo_buffer(config: RunConfig) -> ReplayBuffer:
     data): exactly full, never written again.
 
     The shipped demos carry the default rewards (+1 at the goal, 0 otherwise; the expert never
-    touches lava); they are relabelled with the run's env rewards so both buffers agree."""
-    demos = lava_bridge_mj.load_demos(config.demos, env_id=config.env_id)
+    touches lava); they are relabelled with the run's env rewards so both buffers agree. Another env's
+    demos keep their rewards, and their actions are rescaled from the env's Box bounds to the
+    learners' [-1, 1], as the vector env rescales the other way."""
+    demos = config.load_demos()
     env = config.make_env()
-    rewards = np.where(demos["rewards"] == 1.0, env.goal_reward, env.step_reward)
-    buffer = ReplayBuffer(len(rewards), 4, 2)
-    for transition in zip(demos["observations"], demos["actions"], rewards, demos["next_observations"],
+    actions = demos["actions"]
+    if config.lava_bridge:
+        rewards = np.where(demos["rewards"] == 1.0, env.goal_reward, env.step_reward)
+    else:
+        rewards = demos["rewards"]
+        low, high = env.action_space.low.astype(np.float64), env.action_space.high.astype(np.float64)
+        actions = ((actions - low) / (high - low) * 2.0 - 1.0).astype(np.float32)
+    env.close()
+    buffer = ReplayBuffer(len(rewards), demos["observations"].shape[1], actions.shape[1])
+    for transition in zip(demos["observations"], actions, rewards, demos["next_observations"],
                           demos["terminations"]):
         buffer.add(*transition)
     return buffer
@@ -102,11 +111,11 @@ class Run:
         # more than MAX_EVAL_ENVS sub-envs); episodes are reset with fixed seeds before every round
         episodes = self.config.eval_episodes
         seeds_at_once = min(len(configs), max(1, MAX_EVAL_ENVS // episodes))
-        self.eval_envs = LavaBridgeVectorEnv(seeds_at_once * episodes, **self.config.env_kwargs())
+        self.eval_envs = self.config.make_vector_env(seeds_at_once * episodes)
         # the seeds share the config's demo set; the buffer is never written, so one copy serves all
         demos = demo_buffer(self.config) if method.demos != "none" else None
         # one vector env steps every seed's episode: sub-env i is seed i's, seeded with that seed
-        self.envs = LavaBridgeVectorEnv(len(configs), **self.config.env_kwargs())
+        self.envs = self.config.make_vector_env(len(configs))
         probe = self.config.make_env()  # an env of the task for the strategies' own rollouts (Omega-SS)
         self.seed_runs = [SeedRun(c, d, probe=probe, envs=self.envs, index=i, demos=demos)
                           for i, (c, d) in enumerate(zip(configs, out_dirs))]
@@ -160,6 +169,7 @@ class Run:
             report.write(self.step, force=True)  # at once: a sweep says where a resumed job starts
         online = self.method.online
         learning_starts = config.sac.learning_starts if online else 0
+        act_dim = self.envs.single_action_space.shape[0]
         start_time = time.perf_counter() - self.elapsed
         if self.guide is not None and not self.guide.trained:
             self.guide.fit(self.seed_runs[0].demos, getattr(config, config.jsrl.guide).batch_size)
@@ -172,7 +182,7 @@ class Run:
         while self.step < config.steps:
             if online:  # offline methods only update
                 if self.step < learning_starts:
-                    actions = [s.rng.uniform(-1.0, 1.0, 2).astype(np.float32) for s in seed_runs]
+                    actions = [s.rng.uniform(-1.0, 1.0, act_dim).astype(np.float32) for s in seed_runs]
                 else:
                     actions = self.agent.act(np.stack([s.obs for s in seed_runs]))
                 if self.guide is not None:  # JSRL: the guide acts for the first h steps of each episode
@@ -262,7 +272,8 @@ class Run:
         seed_list = list(seeds) if seeds is not None else None
         obs = None
         if from_state.any():
-            states = np.stack([start if start is not None else np.zeros(4) for start in starts])
+            chosen = next(start for start in starts if start is not None)
+            states = np.stack([start if start is not None else np.zeros_like(chosen) for start in starts])
             obs, _ = self.envs.reset(seed=seed_list, options={"state": states, "reset_mask": from_state})
         if (mask & ~from_state).any():
             obs, _ = self.envs.reset(seed=seed_list, options={"reset_mask": mask & ~from_state})
@@ -272,11 +283,17 @@ class Run:
                 seed_run.episode_start = (float(o[0]), float(o[1]))
 
     def evaluate(self) -> list[dict[str, float]]:
-        """Each seed's deterministic policy on the fixed p0 and ood episodes; rows written to each run."""
+        """Each seed's deterministic policy on the fixed p0 and ood episodes; rows written to each run.
+        A start the env does not offer (`start_names`: another env offers p0, and ood where it declares
+        one) scores NaN."""
         scores = {}
         for start in EVAL_STARTS:
             members = np.flatnonzero(self.active)  # a seed whose policy diverged stops evaluating too
-            scores[start], diverged = evaluate(self.agent, self.eval_envs, start, self.config.eval_episodes, members)
+            if start not in self.eval_envs.start_names:
+                scores[start] = {i: {"success": float("nan"), "return": float("nan")} for i in members}
+                continue
+            scores[start], diverged = evaluate(self.agent, self.eval_envs, start, self.config.eval_episodes, members,
+                                               horizon=self.eval_envs.max_episode_steps)
             for i, reason in sorted(diverged.items()):
                 self._stop_diverged(np.arange(len(self.seed_runs)) == i, reason)
         rows = []

@@ -28,12 +28,17 @@ def candidate_states(config: RunConfig) -> tuple[np.ndarray, np.ndarray | None]:
     """The start strategy's candidate states and, for whole demo episodes, each one's episode id.
 
     Its method's `candidates` decide: "subset", a seeded subset of `demo_subset` of the demo set's
-    observations (episode ids None); "demo_episodes", every goal-reaching demo episode, whole and
+    observations (another env's: its full `states`) (episode ids None); "demo_episodes", every goal-reaching demo episode, whole and
     in time order (`demo_subset` is unused)."""
-    demos = lava_bridge_mj.load_demos(config.demos, env_id=config.env_id)
+    demos = config.load_demos()
+    field = "observations" if config.lava_bridge else "states"  # another env starts from its full states
     if METHODS[config.method].candidates == "demo_episodes":
-        return goal_reaching_demos(demos)
-    states = demos["observations"]
+        if not config.lava_bridge and "successes" not in demos:
+            raise ValueError(f"{config.method} needs demo episodes that end in success, but demo file {config.demos} "
+                             f"records no success ({config.env_id} reports neither info['success'] nor "
+                             f"info['is_success'])")
+        return goal_reaching_demos(demos, field)
+    states = demos[field]
     rng = np.random.default_rng([config.seed, 2024])  # its own stream: independent of training draws
     size = min(config.demo_subset, len(states))
     return states[np.sort(rng.choice(len(states), size=size, replace=False))], None
@@ -60,7 +65,8 @@ class SeedRun:
         except ValueError as error:
             raise ConfigurationError(f"strategy: {error}") from None
         self.envs, self.index = envs, index
-        self.buffer = ReplayBuffer(config.sac.buffer_size, 4, 2)
+        self.buffer = ReplayBuffer(config.sac.buffer_size, envs.single_observation_space.shape[0],
+                                   envs.single_action_space.shape[0])
         self.demos = demos  # the demo transitions, shared read-only by the batch (None: the method uses none)
         self.rng = np.random.default_rng(config.seed)  # warm-up actions and minibatch indices
         self.episodes = 0
@@ -111,7 +117,8 @@ class SeedRun:
             "success_p0": p0["success"], "success_ood": ood["success"],
             "return_p0": p0["return"], "return_ood": ood["return"],
             "train_return": float(np.mean(returns)) if returns else float("nan"),
-            "train_success": float(np.mean([s for _, s in self.recent])) if returns else float("nan"),
+            "train_success": (float(np.mean([s for _, s in self.recent])) if returns and self.envs.reports_success
+                              else float("nan")),
             "q_mean": self.last_update.get("q_mean", float("nan")),
             "alpha": self.last_update.get("alpha", self.config.sac.initial_alpha if self.method.online
                                           else float("nan")),
@@ -170,7 +177,7 @@ class SeedRun:
         self.buffer.load_state_dict(state["buffer"])
         envs, i = self.envs, self.index
         mask = np.arange(envs.num_envs) == i
-        physics = np.zeros((envs.num_envs, 4))
+        physics = np.zeros((envs.num_envs, len(state["physics"])))
         physics[i] = state["physics"]
         envs.reset(options={"state": physics, "reset_mask": mask})  # this sub-env only, mid-episode
         envs.episode_steps[i] = state["elapsed_steps"]

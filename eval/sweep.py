@@ -48,7 +48,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import lava_bridge_mj
-from lava_bridge_mj.eval.arguments import (apply_settings, check_writable, config_source, device, directory,
+from lava_bridge_mj.eval.arguments import (apply_settings, check_writable, config_source, demo_set, device, directory,
                                            parse_seeds, positive_int, read_config_file, setting, signal_of,
                                            stop_reason, stopping_on_signals, usable_cpus)
 from lava_bridge_mj.eval.config import METHODS, RunConfig, check_batch_fits
@@ -129,6 +129,17 @@ def _error(message: str) -> int:
     return 2
 
 
+def _demo_sets(text: str) -> list:
+    """An argparse type: comma-separated distinct demo sets (500, 7500 or demo file paths)."""
+    values = [demo_set(part.strip()) for part in text.split(",")]
+    values = [str(Path(value).expanduser().resolve()) if isinstance(value, str) else value for value in values]
+    names = [Path(value).stem if isinstance(value, str) else value for value in values]
+    if len(set(names)) != len(names):
+        raise argparse.ArgumentTypeError(f"demo sets {text!r} name one set twice (a file's name without .npz "
+                                         f"names its runs' directory)")
+    return values
+
+
 def _choices(kind: str, allowed: Sequence, convert=str):
     """An argparse type: a comma-separated list of distinct values from `allowed`."""
     def parse(text: str) -> list:
@@ -164,9 +175,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help=f"comma-separated methods, some of {', '.join(METHODS)}")
     parser.add_argument("--seeds", required=True, type=seed_list, metavar="LIST",
                         help=f"e.g. 0-24 or 0,3,5-7 (at most {MAX_SEEDS:,})")
-    parser.add_argument("--demos", type=_choices("demo set", DEMO_SETS, int), default=[defaults.demos],
-                        metavar="LIST", help=f"comma-separated shipped demo sets, 500 and/or 7500 (default: "
-                                             f"{defaults.demos})")
+    parser.add_argument("--demos", type=_demo_sets, default=[defaults.demos],
+                        metavar="LIST", help=f"comma-separated demo sets: shipped ones, 500 and/or 7500 (default: "
+                                             f"{defaults.demos}), or demo files (runs from FILE.npz go to "
+                                             f"OUT/METHOD-dFILE)")
     parser.add_argument("--steps", type=positive_int, help=f"steps per run (default: {defaults.steps})")
     parser.add_argument("--eval-every", type=positive_int, help=f"default: {defaults.eval_every}")
     parser.add_argument("--eval-episodes", type=positive_int, help=f"default: {defaults.eval_episodes}")

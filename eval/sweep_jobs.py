@@ -39,15 +39,16 @@ class Job:
     """A batch of seeds of one (task, method, demos) group, trained together in one process."""
 
     method: str
-    demos: int
+    demos: int | str
     seeds: tuple[int, ...]
     env_id: str = lava_bridge_mj.ENV_ID
 
     @property
     def group(self) -> str:
         """The directory under the sweep's OUT that holds this method's runs on this demo set:
-        METHOD-dDEMOS for LavaBridge-v0, ENV_ID/METHOD-dDEMOS for the suite's other tasks."""
-        name = f"{self.method}-d{self.demos}"
+        METHOD-dDEMOS for LavaBridge-v0, ENV_ID/METHOD-dDEMOS for the suite's other tasks; DEMOS is a
+        demo file's name without its suffix."""
+        name = f"{self.method}-d{Path(self.demos).stem if isinstance(self.demos, str) else self.demos}"
         return name if self.env_id == lava_bridge_mj.ENV_ID else f"{self.env_id}/{name}"
 
     @property

@@ -34,6 +34,7 @@ from gymnasium.vector.utils import batch_space
 
 from lava_bridge_mj.checks import check_integer, check_real_array
 from lava_bridge_mj.lava_bridge import MAX_EPISODE_STEPS, check_env_arguments
+from lava_bridge_mj.starts import START_NAMES
 from lava_bridge_mj.task_physics import LavaBridgeTask
 
 VECTOR_RESET_KEYS = ("state", "start", "reset_mask")
@@ -51,6 +52,10 @@ class LavaBridgeVectorEnv(VectorEnv):
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+    reports_success = True
+    """Every step's info holds "is_success" (the goal reached), as ResetToStateVectorEnv's does where its env reports it."""
+    start_names = START_NAMES
+    """The named starts of reset(options={"start": ...})."""
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int = MAX_EPISODE_STEPS,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **env_kwargs: Any):
@@ -164,6 +169,21 @@ class LavaBridgeVectorEnv(VectorEnv):
     def _info(self, success: np.ndarray, lava: np.ndarray) -> dict[str, np.ndarray]:
         every = np.ones(self.num_envs, dtype=bool)  # gymnasium's vector info: a value and a presence mask
         return {"is_success": success, "_is_success": every, "lava": lava, "_lava": every.copy()}
+
+    def step_episodes(self, indices: np.ndarray, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Step the sub-envs `indices` with `actions` (no time limit, no autoreset: the caller keeps
+        count, as evaluation does); (rewards, terminated, success), one per index."""
+        rewards = np.zeros(len(indices))
+        terminated = np.zeros(len(indices), dtype=bool)
+        success = np.zeros(len(indices), dtype=bool)
+        for n, (j, action) in enumerate(zip(indices, actions)):
+            rewards[n], lava, success[n] = self.task.step(self.datas[j], action)
+            terminated[n] = lava or success[n]
+        return rewards, terminated, success
+
+    def episode_observations(self, indices: np.ndarray) -> np.ndarray:
+        """The observations of the sub-envs `indices`."""
+        return self.task.observations([self.datas[j] for j in indices])
 
     def get_state(self) -> np.ndarray:
         """The physics states (K, 4): identical to the observations."""

@@ -643,7 +643,7 @@ DELETED = object()
 
 @pytest.mark.parametrize("change, message", [
     ({"seed": "abc"}, "seed must be an integer, got 'abc'"),
-    ({"demos": None}, "demos must be an integer, got None"),
+    ({"demos": None}, "demos must be an integer or a demo file's path, got None"),
     ({"method": 5}, "method must be a name, got 5"),
     ({"env": {"bridge_length": "long"}}, "its env settings make no maze"),
     ({"env": [1, 2]}, "its env settings make no maze"),

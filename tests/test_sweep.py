@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from conftest import metrics_without_wall_time
+import lava_bridge_mj
 from lava_bridge_mj.eval import arguments, cli, sweep, sweep_jobs, sweep_ray
 from lava_bridge_mj.eval.arguments import format_seeds
 from lava_bridge_mj.eval.config import RunConfig
@@ -143,6 +144,19 @@ def test_a_sweep_over_tasks_trains_each_task_into_its_directory(config_file, tmp
         assert json.loads((group / "seed0" / "config.json").read_text())["env_id"] == task
         assert (group / "seed0" / "final.pt").exists()
     assert record(out)["arguments"]["envs"] == ["LavaBridge-v0", "LavaBridgeBend-v0"]
+
+
+def test_a_sweep_over_a_demo_file_trains_what_the_shipped_set_it_holds_trains(config_file, tmp_path):
+    """A demo file holding the shipped 500 set: its runs go to METHOD-dNAME, config.json records the
+    file and its hash, and the numbers are those of the shipped set's runs."""
+    demo_file = tmp_path / "expert.npz"
+    lava_bridge_mj.save_demos(lava_bridge_mj.load_demos(500), demo_file)
+    out = tmp_path / "out"
+    assert sweep.main(tiny_argv(out, config_file, "auxss", "0", 150, "--demos", f"500,{demo_file}")) == 0
+    config = json.loads((out / "auxss-dexpert" / "seed0" / "config.json").read_text())
+    assert config["demos"] == str(demo_file) and len(config["demos_sha256"]) == 64
+    assert metrics_without_wall_time(out / "auxss-dexpert/seed0") == metrics_without_wall_time(out / "auxss-d500/seed0")
+    assert record(out)["arguments"]["demos"] == [500, str(demo_file)]
 
 
 # --- local sweeps ----------------------------------------------------------------------------------
@@ -438,7 +452,7 @@ def test_a_ray_address_that_accepts_but_never_answers_is_given_up_on(tmp_path):
     ({"--methods": "sac,dqn"}, "unknown method 'dqn'"),
     ({"--methods": "sac,sac"}, "given twice"),
     ({"--seeds": "3-1"}, "expected a range of seeds low-high in [0, 4294967295], got '3-1'"),
-    ({"--demos": "500,600"}, "unknown demo set '600'"),
+    ({"--demos": "500,600"}, "'600' is neither"),
     ({"--workers": "0"}, "positive integer"),
     ({"--address": "127.0.0.1:6379"}, "--address needs --backend ray"),
     ({"--steps": "-5"}, "positive integer"),
