@@ -1,5 +1,6 @@
 """The Python examples of the README and the documentation pages run as they stand and do what their text says."""
 
+import json
 import re
 import subprocess
 import sys
@@ -75,3 +76,25 @@ def test_the_start_strategies_example_runs_them_on_hopper_states(tmp_path):
     # AuxSS's weights moved below 1 where the short random-policy episodes started; GoalDist-SS's
     # weights fall away from the state furthest forward
     assert 0.0 < float(weights["auxss"]) < 1.0 and 0.0 < float(weights["goaldist_ss"]) < 1.0
+
+
+def test_the_any_env_example_records_hopper_demos_and_trains_auxss_on_them(tmp_path):
+    code = example("docs/any-env.md", "## From `gymnasium.make` to AuxSS")
+    assert len(code.strip().splitlines()) < 20
+    small = {"n_transitions=2000": "n_transitions=200", "steps=20_000": "steps=300",
+             "eval_every=5_000": "eval_every=150", "eval_episodes=10": "eval_episodes=2"}
+    for number, smaller in small.items():
+        assert number in code
+        code = code.replace(number, smaller)
+    (tmp_path / "example.py").write_text(code)
+    done = subprocess.run([sys.executable, "example.py"], cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    printed = re.findall(r"^step (\d+): return from p0 (\S+)$", done.stdout, re.M)
+    assert [step for step, _ in printed] == ["150", "300"] and all(float(r) > 0 for _, r in printed)
+    demos = lava_bridge_mj.load_demos(path=tmp_path / "hopper_demos.npz")
+    assert demos["env_id"] == "Hopper-v5" and len(demos["states"]) == 200
+    for seed in (0, 1):
+        run = tmp_path / "runs" / "hopper" / f"seed{seed}"
+        config = json.loads((run / "config.json").read_text())
+        assert config["env_id"] == "Hopper-v5" and config["demos"] == str(tmp_path / "hopper_demos.npz")
+        assert [row.split(",")[0] for row in (run / "metrics.csv").read_text().splitlines()[1:]] == ["150", "300"]
