@@ -111,11 +111,13 @@ class RunConfig:
         if not isinstance(self.env_id, str) or not self.env_id:
             raise ValueError(f"env_id must be a gymnasium id, got {self.env_id!r}")
         if not self.lava_bridge:
+            from lava_bridge_mj.state_vector import env_spec
+
             try:
-                gymnasium.spec(self.env_id)
-            except gymnasium.error.Error as error:
-                raise ValueError(f"unknown env_id {self.env_id!r}: neither a Lava Bridge task "
-                                 f"({list(lava_bridge_mj.TASKS)}) nor a registered gymnasium id ({error})") from None
+                env_spec(self.env_id)
+            except ValueError as error:
+                raise ValueError(f"{error}; expected a Lava Bridge task ({list(lava_bridge_mj.TASKS)}) or a "
+                                 f"registered gymnasium id (\"module:Id\" imports module first)") from None
             if not isinstance(self.demos, str):
                 raise ValueError(f"env_id {self.env_id!r} is not a Lava Bridge task ({list(lava_bridge_mj.TASKS)}), "
                                  f"which ships no demos: give demos the path of a demo file recorded on it "
@@ -152,7 +154,13 @@ class RunConfig:
         demos = lava_bridge_mj.load_demos(path=self.demos)
         source = f"demo file {self.demos}"
         recorded_on = demos.get("env_id")
-        if recorded_on != self.env_id and (recorded_on is not None or not self.lava_bridge):
+        if not self.lava_bridge:  # "module:Id" and Id name one env, whose spec's id record_demos records
+            from lava_bridge_mj.state_vector import env_spec
+
+            same = recorded_on == env_spec(self.env_id).id
+        else:
+            same = recorded_on in (None, self.env_id)
+        if not same:
             raise ValueError(f"{source} was recorded on {recorded_on or 'an env it does not name'}, not on "
                              f"{self.env_id}: record demos on {self.env_id} (lava_bridge_mj.record_demos)")
         if not self.lava_bridge and "states" not in demos:

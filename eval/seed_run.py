@@ -37,7 +37,11 @@ def candidate_states(config: RunConfig) -> tuple[np.ndarray, np.ndarray | None]:
             raise ValueError(f"{config.method} needs demo episodes that end in success, but demo file {config.demos} "
                              f"records no success ({config.env_id} reports neither info['success'] nor "
                              f"info['is_success'])")
-        return goal_reaching_demos(demos, field)
+        states, episode_ids = goal_reaching_demos(demos, field)
+        if len(states) == 0:
+            raise ValueError(f"{config.method} needs demo episodes that end in success, but none of the "
+                             f"{int(demos['episode_ids'][-1]) + 1} episodes of demo file {config.demos} does")
+        return states, episode_ids
     states = demos[field]
     rng = np.random.default_rng([config.seed, 2024])  # its own stream: independent of training draws
     size = min(config.demo_subset, len(states))

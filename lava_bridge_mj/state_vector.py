@@ -23,6 +23,7 @@ Reset options (all optional, one of "state" / "start"), as LavaBridgeVectorEnv's
 from __future__ import annotations
 
 import dataclasses
+import importlib
 from typing import Any
 
 import gymnasium
@@ -37,14 +38,23 @@ from lava_bridge_mj.reset_to_state import ResetToState
 VECTOR_RESET_KEYS = ("state", "start", "reset_mask")
 
 
+def env_spec(env_id: str) -> gymnasium.envs.registration.EnvSpec:
+    """The registered spec of `env_id`; "module:Id" imports the module first (it registers Id), as
+    `gymnasium.make` does. ValueError naming an id gymnasium does not know."""
+    module, _, name = env_id.rpartition(":")
+    try:
+        if module:
+            importlib.import_module(module)
+        return gymnasium.spec(name)
+    except (ImportError, gymnasium.error.Error) as error:
+        raise ValueError(f"unknown env_id {env_id!r}: {error}") from None
+
+
 def make_state_env(env_id: str, time_limit: bool = True, **env_kwargs: Any) -> ResetToState:
     """`ResetToState(gymnasium.make(env_id, **env_kwargs))`; without gymnasium's TimeLimit when not
     `time_limit`. ValueError naming `env_id` for an id gymnasium does not know or an env ResetToState
     cannot serve."""
-    try:
-        spec = gymnasium.spec(env_id)
-    except gymnasium.error.Error as error:
-        raise ValueError(f"unknown env_id {env_id!r}: {error}") from None
+    spec = env_spec(env_id)
     if not time_limit:
         spec = dataclasses.replace(spec, max_episode_steps=None)
     env = gymnasium.make(spec, disable_env_checker=True, **env_kwargs)
@@ -68,7 +78,8 @@ class ResetToStateVectorEnv(VectorEnv):
     """K `ResetToState`-wrapped copies of the gymnasium env `env_id`; see the module docstring.
 
     Args:
-        env_id: a gymnasium id whose env `ResetToState` serves (Hopper-v5, PointMaze_UMaze-v3, ...).
+        env_id: a gymnasium id whose env `ResetToState` serves (Hopper-v5,
+            gymnasium_robotics:PointMaze_UMaze-v3, ...): "module:Id" imports the module first.
         num_envs: K.
         max_episode_steps: the time limit; default the spec's (ValueError when it has none).
         **env_kwargs: `gymnasium.make`'s keyword arguments for every sub-env.
@@ -79,7 +90,7 @@ class ResetToStateVectorEnv(VectorEnv):
     def __init__(self, env_id: str, num_envs: int = 1, max_episode_steps: int | None = None, **env_kwargs: Any):
         self.num_envs = check_integer("num_envs", num_envs, 1)
         self.envs = [make_state_env(env_id, time_limit=False, **env_kwargs) for _ in range(num_envs)]
-        limit = gymnasium.spec(env_id).max_episode_steps if max_episode_steps is None else max_episode_steps
+        limit = env_spec(env_id).max_episode_steps if max_episode_steps is None else max_episode_steps
         if limit is None:
             raise ValueError(f"{env_id} registers no max_episode_steps; give max_episode_steps")
         self.max_episode_steps = check_integer("max_episode_steps", limit, 1)
@@ -90,8 +101,9 @@ class ResetToStateVectorEnv(VectorEnv):
         self.env_observation_space = env.observation_space
         self.low = env.action_space.low.astype(np.float64)
         self.high = env.action_space.high.astype(np.float64)
-        self.single_observation_space = spaces.flatten_space(env.observation_space)
-        self.single_observation_space.dtype = np.dtype(np.float64)
+        flat = spaces.flatten_space(env.observation_space)
+        self.single_observation_space = spaces.Box(flat.low.astype(np.float64), flat.high.astype(np.float64),
+                                                   dtype=np.float64)
         self.single_action_space = spaces.Box(-1.0, 1.0, env.action_space.shape, dtype=np.float32)
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)

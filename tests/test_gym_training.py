@@ -294,6 +294,8 @@ def test_a_resume_refuses_a_demo_file_that_changed(demo_files, trained, tmp_path
 def test_bad_input_is_named(demo_files, tmp_path):
     with pytest.raises(ValueError, match="unknown env_id 'NoSuchEnv-v0'"):
         tiny("NoSuchEnv-v0", demo_files[PENDULUM])
+    with pytest.raises(ValueError, match="unknown env_id 'no_such_module:NoSuchEnv-v0': No module named"):
+        tiny("no_such_module:NoSuchEnv-v0", demo_files[PENDULUM])
     with pytest.raises(ValueError, match=f"recorded on {PENDULUM}, not on InvertedDoublePendulum-v5"):
         tiny("InvertedDoublePendulum-v5", demo_files[PENDULUM])
     with pytest.raises(ValueError, match="ships no demos: give demos the path of a demo file"):
@@ -323,3 +325,12 @@ def test_the_cli_trains_a_gymnasium_id_from_a_demo_file(demo_files, tmp_path, ca
     with pytest.raises(SystemExit) as exit_:
         cli_main([*argv[:-3], "--out", str(tmp_path / "video"), "--video"])
     assert exit_.value.code == 2 and f"{PENDULUM} is another env" in capsys.readouterr().err
+
+
+def test_the_reverse_curriculum_is_refused_demos_none_of_whose_episodes_succeed(tmp_path):
+    demos = record_demos(gymnasium.make(REACH), lambda obs: np.array([-3.0]), 60, seed=0)  # pushed left: falls
+    assert "successes" in demos and not demos["successes"].any()
+    save_demos(demos, tmp_path / "failures.npz")
+    with pytest.raises(ValueError, match=r"reverse_ss needs demo episodes that end in success, but none of the "
+                                         r"\d+ episodes of demo file .*failures.npz does"):
+        train(tiny(REACH, tmp_path / "failures.npz", "reverse_ss"), tmp_path / "run", progress=False)
