@@ -138,28 +138,21 @@ class ExternalTask:
 
 
 # --- PointMaze -----------------------------------------------------------------------------------
-class MazeExpert:
-    """Gymnasium-Robotics' PointMaze: the shortest path over the maze's free cells, followed.
+class MazePlanner:
+    """Shortest paths over the free cells of a Gymnasium-Robotics `Maze` (4-connected): a
+    breadth-first search from each goal cell asked for, kept."""
 
-    Each call finds the ball's cell and the goal's cell (`Maze.cell_xy_to_rowcol` of the observation's
-    `achieved_goal` and `desired_goal`), and aims at the centre of the next cell on a shortest path
-    (breadth-first search from the goal cell over the free cells, 4-connected, one table per goal
-    cell, kept), or at the goal itself once in the goal cell. The straight line from anywhere in a cell
-    to the centre of a neighbouring free cell stays within the two cells, so the ball never aims across
-    a wall. The action is a force: a velocity toward the aim point (`position_gain` times the distance,
-    at most `max_speed`) tracked with `velocity_gain`, clipped to the action bounds.
-    """
-
-    def __init__(self, maze, action_space: gymnasium.spaces.Box, *, max_speed: float = 3.0,
-                 position_gain: float = 6.0, velocity_gain: float = 1.5):
+    def __init__(self, maze):
         self.maze = maze
-        self.action_space = action_space
-        self.max_speed, self.position_gain, self.velocity_gain = max_speed, position_gain, velocity_gain
         self._steps_to_goal: dict[tuple[int, int], np.ndarray] = {}
 
     def free_cells(self) -> list[tuple[int, int]]:
         """Every (row, column) of the maze that is not a wall."""
         return [(i, j) for i, row in enumerate(self.maze.maze_map) for j, cell in enumerate(row) if cell != 1]
+
+    def cell(self, xy: np.ndarray) -> tuple[int, int]:
+        """The (row, column) of the cell holding the point `xy`."""
+        return tuple(int(x) for x in self.maze.cell_xy_to_rowcol(xy))
 
     def steps_to_goal(self, goal_cell: tuple[int, int]) -> np.ndarray:
         """Cell steps from each cell to `goal_cell` on a shortest path (-1: a wall or unreachable)."""
@@ -189,20 +182,38 @@ class MazeExpert:
                 return neighbour
         return cell
 
+
+class MazeExpert:
+    """Gymnasium-Robotics' PointMaze: the shortest path over the maze's free cells, followed.
+
+    Each call finds the ball's cell and the goal's cell (from the observation's `achieved_goal` and
+    `desired_goal`) and aims at the centre of the next cell on a shortest path (`MazePlanner`), or at
+    the goal itself once in the goal's cell. The straight line from anywhere in a cell to the centre of
+    a neighbouring free cell stays within the two cells, so the ball never aims across a wall. The
+    action is a force: a velocity toward the aim point (`position_gain` times the distance, at most
+    `max_speed`) tracked with `velocity_gain`, clipped to the action bounds.
+    """
+
+    def __init__(self, maze, action_space: gymnasium.spaces.Box, *, max_speed: float = 3.0,
+                 position_gain: float = 6.0, velocity_gain: float = 1.5):
+        self.planner = MazePlanner(maze)
+        self.action_space = action_space
+        self.max_speed, self.position_gain, self.velocity_gain = max_speed, position_gain, velocity_gain
+
     def aim(self, position: np.ndarray, goal: np.ndarray) -> np.ndarray:
-        """The point the ball heads for: the next cell's centre, or the goal in the goal cell."""
-        cell = tuple(int(x) for x in self.maze.cell_xy_to_rowcol(position))
-        goal_cell = tuple(int(x) for x in self.maze.cell_xy_to_rowcol(goal))
-        following = self.next_cell(cell, goal_cell)
-        return np.asarray(goal, dtype=np.float64) if following == cell else self.maze.cell_rowcol_to_xy(following)
+        """The point the ball heads for: the next cell's centre, or the goal in the goal's cell."""
+        cell = self.planner.cell(position)
+        following = self.planner.next_cell(cell, self.planner.cell(goal))
+        if following == cell:
+            return np.asarray(goal, dtype=np.float64)
+        return self.planner.maze.cell_rowcol_to_xy(following)
 
     def reset(self, observation: dict[str, np.ndarray], info: dict[str, Any]) -> None:
         pass  # stateless: every action follows from the observation
 
     def __call__(self, observation: dict[str, np.ndarray]) -> np.ndarray:
         position, velocity = observation["achieved_goal"], observation["observation"][2:4]
-        offset = self.aim(position, observation["desired_goal"]) - position
-        desired = self.position_gain * offset
+        desired = self.position_gain * (self.aim(position, observation["desired_goal"]) - position)
         speed = np.linalg.norm(desired)
         if speed > self.max_speed:
             desired *= self.max_speed / speed
@@ -222,7 +233,7 @@ class PointMazeTask(ExternalTask):
 
     def ood_cells(self, maze) -> list[tuple[int, int]]:
         """The "ood" start cells: every free cell but the start cell and the goal cell."""
-        return [cell for cell in MazeExpert(maze, None).free_cells() if cell not in (self.start_cell, self.goal_cell)]
+        return [cell for cell in MazePlanner(maze).free_cells() if cell not in (self.start_cell, self.goal_cell)]
 
     def reset_to_start(self, env, start, seed, rng):
         cell = self.start_cell
@@ -249,21 +260,20 @@ class MazeDistance:
     straight distance to the goal."""
 
     def __init__(self, maze, position: tuple[int, int], goal: tuple[int, int]):
-        self.planner = MazeExpert(maze, None)
+        self.planner = MazePlanner(maze)
         self.position, self.goal = list(position), list(goal)
 
     def __call__(self, states: np.ndarray) -> np.ndarray:
-        maze, size = self.planner.maze, self.planner.maze.maze_size_scaling
+        planner, maze = self.planner, self.planner.maze
         distances = np.empty(len(states))
         for k, (position, goal) in enumerate(zip(states[:, self.position], states[:, self.goal])):
-            cell = tuple(int(x) for x in maze.cell_xy_to_rowcol(position))
-            goal_cell = tuple(int(x) for x in maze.cell_xy_to_rowcol(goal))
-            steps = self.planner.steps_to_goal(goal_cell)[cell]
+            cell, goal_cell = planner.cell(position), planner.cell(goal)
+            steps = planner.steps_to_goal(goal_cell)[cell]
             if steps <= 0:
-                distances[k] = np.linalg.norm(goal - position)  # in the goal cell (or walled in: straight)
+                distances[k] = np.linalg.norm(goal - position)  # in the goal's cell (or walled in: straight)
                 continue
-            following = maze.cell_rowcol_to_xy(self.planner.next_cell(cell, goal_cell))
-            distances[k] = (np.linalg.norm(following - position) + (steps - 1) * size
+            following = maze.cell_rowcol_to_xy(planner.next_cell(cell, goal_cell))
+            distances[k] = (np.linalg.norm(following - position) + (steps - 1) * maze.maze_size_scaling
                             + np.linalg.norm(goal - maze.cell_rowcol_to_xy(goal_cell)))
         return distances
 

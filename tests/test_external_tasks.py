@@ -15,7 +15,7 @@ import pytest
 
 from lava_bridge_mj import ResetToState
 from lava_bridge_mj.external import (EXTERNAL_TASKS, START_NAMES, MazeExpert, NamedStarts, make_task_env,
-                                     run_episode, state_offset)
+                                     MazePlanner, run_episode, state_offset)
 
 pytestmark = pytest.mark.filterwarnings("ignore:.*precision lowered by casting to float32")  # OGBench's Box bounds
 
@@ -67,7 +67,7 @@ def test_maze_expert_reaches_the_goal_from_every_free_cell(env_id):
     task = EXTERNAL_TASKS[env_id]
     env = task.make_env()  # the env's own reset options place the ball in any cell
     expert = MazeExpert(env.unwrapped.maze, env.action_space)
-    cells = [cell for cell in expert.free_cells() if cell != task.goal_cell]
+    cells = [cell for cell in expert.planner.free_cells() if cell != task.goal_cell]
     assert len(cells) == sum(row.count(0) for row in env.unwrapped.maze.maze_map) - 1
     for seed, cell in enumerate(cells):
         observation, info = env.reset(seed=seed, options={"reset_cell": np.array(cell),
@@ -83,21 +83,20 @@ def test_maze_expert_reaches_the_goal_from_every_free_cell(env_id):
 
 def test_maze_plan_is_a_shortest_path_through_free_cells():
     task = EXTERNAL_TASKS[MAZES[0]]
-    env = make_task_env(MAZES[0])
-    expert = task.expert(env)
+    planner = MazePlanner(make_task_env(MAZES[0]).unwrapped.maze)
     cell, path = task.start_cell, [task.start_cell]
     while cell != task.goal_cell:
-        cell = expert.next_cell(cell, task.goal_cell)
+        cell = planner.next_cell(cell, task.goal_cell)
         path.append(cell)
-    free = set(expert.free_cells())
+    free = set(planner.free_cells())
     assert all(c in free for c in path)
     assert all(abs(a[0] - b[0]) + abs(a[1] - b[1]) == 1 for a, b in zip(path, path[1:]))
     # LARGE_MAZE by hand: down column 1 to row 3, east along row 3 to column 6, down column 6 to row 5,
-    # east along row 5 to column 8, down to row 7, east to column 10: 15 steps, the manhattan distance
-    # 6 + 9 plus no detour
-    assert len(path) - 1 == 15 == expert.steps_to_goal(task.goal_cell)[task.start_cell]
+    # east along row 5 to column 8, down to row 7, east to column 10: 15 steps, the Manhattan distance
+    # 6 + 9 (no detour)
+    assert len(path) - 1 == 15 == planner.steps_to_goal(task.goal_cell)[task.start_cell]
     with pytest.raises(ValueError, match=r"cell \(0, 0\) is a wall"):
-        expert.next_cell((0, 0), task.goal_cell)
+        planner.next_cell((0, 0), task.goal_cell)
 
 
 def test_cube_expert_reads_the_oracles_inputs_from_the_observation():
@@ -140,7 +139,7 @@ def test_maze_p0_starts_in_its_start_cell_and_ood_in_other_free_cells(env_id):
         observation, info = env.reset(seed=seed, options={"start": "ood"})
         ood_cells.add(cell_of(env, observation["achieved_goal"]))
         assert cell_of(env, observation["desired_goal"]) == task.goal_cell and not info["success"]
-    free = set(MazeExpert(env.unwrapped.maze, None).free_cells())
+    free = set(MazePlanner(env.unwrapped.maze).free_cells())
     assert ood_cells <= free - {task.start_cell, task.goal_cell} and len(ood_cells) >= 10
 
 
@@ -257,8 +256,8 @@ def test_maze_task_states_point_to_the_ball_and_measure_the_path_to_the_goal(env
     start_state, goal_state = states[0].copy(), states[0].copy()
     start_state[position] = maze.cell_rowcol_to_xy(task.start_cell) + [0.1, -0.2]
     goal_state[position] = goal + [0.3, 0.0]
-    steps = expert.steps_to_goal(task.goal_cell)[task.start_cell]
-    following = maze.cell_rowcol_to_xy(expert.next_cell(task.start_cell, task.goal_cell))
+    steps = expert.planner.steps_to_goal(task.goal_cell)[task.start_cell]
+    following = maze.cell_rowcol_to_xy(expert.planner.next_cell(task.start_cell, task.goal_cell))
     by_hand = (np.linalg.norm(following - start_state[position]) + (steps - 1)
                + np.linalg.norm(goal - maze.cell_rowcol_to_xy(task.goal_cell)))
     np.testing.assert_allclose(task_states.goal_distance(np.array([start_state, goal_state])), [by_hand, 0.3])
