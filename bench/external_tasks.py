@@ -86,7 +86,8 @@ def main(argv: list[str] | None = None) -> None:
     command = "python bench/external_tasks.py" + "".join(f" {shlex.quote(a)}" for a in (argv or sys.argv[1:]))
     text = (f"# External tasks: experts and random policies\n\n`{command}`\n\n"
             f"Episodes use seeds 0, 1, ...; an episode ends at the goal or at the env's step limit. "
-            f"Steps/s in this process's CPU time (single-threaded loops).\n\n" + "\n".join(lines) + "\n\n" + "\n".join(speeds) + "\n")
+            f"Steps/s in this process's CPU time (single-threaded loops).\n\n"
+            + "\n".join(lines) + "\n\n" + "\n".join(speeds) + "\n")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     tmp = args.out.with_name(args.out.name + ".tmp")
     tmp.write_text(text)

@@ -4,6 +4,7 @@ declared states and their experts."""
 
 from __future__ import annotations
 
+import re
 import socket
 import subprocess
 import sys
@@ -324,3 +325,12 @@ def test_bench_script_runs_and_writes_its_table(tmp_path):
     for env_id in EXTERNAL_TASKS:
         assert text.count(f"| {env_id} |") == 4  # expert and random, from p0 and ood
     assert "steps/s" in text
+
+
+def test_the_documentation_example_runs_and_does_what_it_says(tmp_path):
+    page = (ROOT / "docs" / "external-tasks.md").read_text().split("\n## Use a task\n", 1)[1]
+    script = tmp_path / "example.py"
+    script.write_text(re.search(r"```python\n(.*?)```", page, re.S).group(1))
+    done = subprocess.run([sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.splitlines() == ["positions at (1, 2)", "expert success: True", "back at the start: True"]
