@@ -7,7 +7,9 @@ registers them in one go.
 `ResetToState(env)` gives any MuJoCo-based Gymnasium env (Gymnasium's MuJoCo envs, Gymnasium-Robotics'
 PointMaze, OGBench's cube envs) exact resets to the states it reports (reset_to_state.py);
 `record_demos(env, policy, n, seed)` records demonstrations with their states on any such env, which
-`train` then trains on (docs/any-env.md).
+`train` then trains on (docs/any-env.md). `make_task_env(env_id)` makes one of `EXTERNAL_TASKS`, other
+projects' tasks with named starts and an expert (external.py; their projects are optional extras,
+imported on first use).
 
 Training from Python: `lava_bridge_mj.train(lava_bridge_mj.RunConfig(method="auxss"), "runs/auxss")`
 (eval/runner.py) returns the finished run; both load on first use, so importing the package for the
@@ -24,6 +26,7 @@ import gymnasium  # noqa: E402
 
 from lava_bridge_mj.demos import load_demos, record_demos, save_demos  # noqa: E402
 from lava_bridge_mj.expert import ScriptedExpert  # noqa: E402
+from lava_bridge_mj.external import EXTERNAL_TASKS, make_task_env  # noqa: E402
 from lava_bridge_mj.layout import Disc, Layout  # noqa: E402
 from lava_bridge_mj.lava_bridge import MAX_EPISODE_STEPS, LavaBridgeEnv  # noqa: E402
 from lava_bridge_mj.reset_to_state import ResetToState  # noqa: E402
@@ -55,7 +58,8 @@ register_envs()
 
 __all__ = ["ENV_ID", "MAX_EPISODE_STEPS", "SUITE", "TASKS", "TASK_DOCS", "Disc", "Layout", "LavaBridgeEnv", "LavaBridgeTask",
            "LavaBridgeVectorEnv", "ResetToState", "RunConfig", "START_NAMES", "ScriptedExpert", "load_demos",
-           "record_demos", "register_envs", "save_demos", "start_distribution", "task_layout", "train"]
+           "EXTERNAL_TASKS", "make_task_env", "record_demos", "register_envs", "save_demos", "start_distribution",
+           "task_layout", "train"]
 
 
 def __getattr__(name: str):
