@@ -13,7 +13,8 @@ under the repository root, and a render function, which turns what the source re
   --out` writes) and the SAC-from-p0 runs in results/suite/sac_p0;
 - docs/speed.md and docs/sweeps.md: the speed tables, from the bench outputs in results/bench/*.txt;
 - results/INDEX.md: per folder of runs under results/, the methods, seeds, runs, commits, platform and
-  training time, from each run's config.json, provenance.json and metrics.csv.
+  training time, from each run's config.json, provenance.json and metrics.csv (and, for runs made before
+  provenance.json was recorded, the commits results/code_before_provenance.json notes).
 
 `make report` runs `python -m lava_bridge_mj.eval.doc_tables` after the reports; `--check` writes nothing
 and exits 1 naming each stale document.
@@ -39,6 +40,8 @@ SAC_FROM_P0 = Path("results/suite/sac_p0")
 BENCH = Path("results/bench")
 RESULTS = Path("results")
 INDEX = Path("results/INDEX.md")
+CODE_BEFORE_PROVENANCE = Path("results/code_before_provenance.json")
+"""Folder -> the commits noted for its runs made before provenance.json was recorded."""
 DOCUMENTS = (Path("README.md"), Path("docs/results.md"), Path("docs/environment.md"), Path("docs/speed.md"),
              Path("docs/sweeps.md"), INDEX)
 START_DISTRIBUTIONS = ("auxss", "uniform_ss", "omega_ss", "goaldist_ss", "reverse_ss")
@@ -407,8 +410,10 @@ def _commit(session: dict) -> str:
     return "unknown" if not git.get("commit") else git["commit"][:7] + ("+" if git.get("dirty") else "")
 
 
-def results_index(runs: list[RunRecord]) -> list[str]:
-    """Per folder of runs: methods, seeds, runs, commits, platform and summed wall time."""
+def results_index(data: tuple[list[RunRecord], dict[str, str]]) -> list[str]:
+    """Per folder of runs: methods, seeds, runs, commits, platform and summed wall time. The commits are those
+    the runs' provenance.json records and, for runs without one, those noted for the folder (`noted`)."""
+    runs, noted = data
     lines = ["| folder | methods | seeds | runs | commits | platform | training wall time, summed over runs |",
              "|---|---|---|---:|---|---|---:|"]
     folders: dict[str, list[RunRecord]] = {}
@@ -419,7 +424,8 @@ def results_index(runs: list[RunRecord]) -> list[str]:
         commits = list(dict.fromkeys(_commit(s) for s in sessions))
         unrecorded = sum(not run.sessions for run in members)
         if unrecorded:
-            commits.append(f"{unrecorded} run{'s' if unrecorded > 1 else ''} without provenance.json")
+            commits.append(f"{unrecorded} run{'s' if unrecorded > 1 else ''} without provenance.json"
+                           + (f", noted as {noted[folder]}" if folder in noted else ""))
         machines = dict.fromkeys(" ".join(filter(None, [s.get("code", {}).get("platform"), s.get("code", {}).get("processor")]))
                                  for s in sessions)
         walls = [run.wall_time for run in members if run.wall_time is not None]
@@ -444,8 +450,10 @@ def answers_source(root: Path) -> dict:
     return json.loads((root / ANSWERS).read_text())
 
 
-def results_source(root: Path) -> list[RunRecord]:
-    return read_runs(root / RESULTS)
+def results_source(root: Path) -> tuple[list[RunRecord], dict[str, str]]:
+    noted = root / CODE_BEFORE_PROVENANCE
+    notes = json.loads(noted.read_text()) if noted.exists() else {}
+    return read_runs(root / RESULTS), {folder: note for folder, note in notes.items() if not folder.startswith("_")}
 
 
 PARTS: dict[str, Part] = {

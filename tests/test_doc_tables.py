@@ -257,7 +257,13 @@ def test_the_results_index_groups_runs_by_folder_with_their_provenance(tmp_path)
     runs = doc_tables.read_runs(results)
     assert [(r.folder, r.seed) for r in runs] == [("old_run", 7), ("study/Task-v0", 0), ("study/Task-v0", 1),
                                                   ("study/Task-v0", 3)]
-    assert doc_tables.results_index(runs)[2:] == [
-        "| `old_run/` | sac | 7 | 1 | 1 run without provenance.json | - | 0.0 h |",
+    assert doc_tables.results_index((runs, {"old_run": "abc1234"}))[2:] == [
+        "| `old_run/` | sac | 7 | 1 | 1 run without provenance.json, noted as abc1234 | - | 0.0 h |",
         "| `study/Task-v0/` | sac | 0-1,3 | 3 | aaaaaaa+, bbbbbbb, 1 run without provenance.json | Linux-x; Linux-y "
         "| 0.2 h |"]
+
+
+def test_every_folder_the_code_notes_name_holds_runs_without_provenance():
+    runs, noted = doc_tables.results_source(ROOT)
+    unrecorded = {run.folder for run in runs if not run.sessions}
+    assert noted and set(noted) <= unrecorded, sorted(set(noted) - unrecorded)
