@@ -35,8 +35,8 @@ class SACConfig:
     worth of data so the first minibatches are not a handful of transitions); then one update per step."""
     initial_alpha: float = 0.01
     """Entropy coefficient alpha before the first update; automatic tuning then adapts it. Not the
-    usual 1.0: with a single +1 reward a large entropy bonus outweighs the goal, and 0.1 and 1.0 learned
-    far slower on the tuning seeds (docs/calibration.md, section 6)."""
+    usual 1.0: with a single +1 reward a large entropy bonus outweighs the goal (docs/calibration.md,
+    section 6)."""
     target_entropy: float | None = None
     """Policy entropy (nats, summed over action dimensions) that the tuning of alpha holds: alpha rises
     while the policy's entropy is below it and falls while above. None means -act_dim, the SAC

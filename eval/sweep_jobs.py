@@ -206,7 +206,7 @@ def die_with_parent(parent_pid: int, poll_interval: float = 1.0, use_prctl: bool
 def worker_environment(threads: int) -> dict[str, str]:
     """Environment variables for job processes, where the user has not set them: OpenMP threads
     that sleep rather than spin while waiting (spinning threads of several processes on shared
-    cores were measured to slow training about 100x), and a pool of `threads` threads."""
+    cores slow training many times over: docs/speed.md, "A busy machine"), and a pool of `threads` threads."""
     wanted = {"OMP_WAIT_POLICY": "PASSIVE", "OMP_NUM_THREADS": str(threads)}
     return {name: os.environ.get(name, value) for name, value in wanted.items()}
 

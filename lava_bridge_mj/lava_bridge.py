@@ -51,8 +51,7 @@ class LavaBridgeEnv(gymnasium.Env):
     ## Rewards
     Sparse: `goal_reward` (+1) on reaching the goal, `lava_reward` (0) on touching lava,
     `step_reward` (0) otherwise. Touching lava ends the episode, which forfeits the goal's +1: that is
-    its penalty. A lava reward of -1 or -0.1 (the paper gives no value) made learning from p0 fail on
-    most tuning seeds, the policies hiding in the start room (docs/calibration.md).
+    its penalty (docs/calibration.md gives the reason for these defaults).
 
     ## Starting State
     `options={"start": "p0"}` (the default): a point in one of three small blobs at the left end of
