@@ -11,7 +11,8 @@ under the repository root, and a render function, which turns what the source re
   test decides, the equivalence intervals or the seeds that would decide, and the seeds each group holds;
 - docs/environment.md: the difficulty table, from results/suite/difficulty.md (what `bench/difficulty.py
   --out` writes) and the SAC-from-p0 runs in results/suite/sac_p0;
-- docs/speed.md and docs/sweeps.md: the speed tables, from the bench outputs in results/bench/*.txt;
+- docs/speed.md and docs/sweeps.md: the speed tables, from the bench outputs in results/bench/*.txt, and
+  the network-size table, from the AuxSS runs in results/netsize and results/calibration/auxss_lava0;
 - results/INDEX.md: per folder of runs under results/, the methods, seeds, runs, commits, platform and
   training time, from each run's config.json, provenance.json and metrics.csv (and, for runs made before
   provenance.json was recorded, the commits results/code_before_provenance.json notes).
@@ -370,6 +371,46 @@ def sweep_scaling_table(text: str) -> list[str]:
     return lines
 
 
+NETSIZE_RUNS = (Path("results/calibration/auxss_lava0"), Path("results/netsize/auxss-h128"),
+                Path("results/netsize/auxss-h256"))
+"""AuxSS at 64 (the calibration's runs), 128 and 256 hidden units."""
+NETSIZE_SEEDS = (100, 101, 102)
+
+
+def netsize_source(root: Path) -> list[tuple[int, dict[int, list[tuple[int, float]]]]]:
+    """Per folder of NETSIZE_RUNS: its hidden units and, per seed, (step, success from p0) at every evaluation."""
+    groups = []
+    for folder in NETSIZE_RUNS:
+        curves = {}
+        for seed in NETSIZE_SEEDS:
+            run = root / folder / f"seed{seed}"
+            with (run / "metrics.csv").open() as f:
+                curves[seed] = [(int(r["step"]), float(r["success_p0"])) for r in csv.DictReader(f)]
+        hidden = json.loads((run / "config.json").read_text())["sac"]["hidden_sizes"][0]
+        groups.append((hidden, curves))
+    return groups
+
+
+def netsize_table(groups: list[tuple[int, dict[int, list[tuple[int, float]]]]], threshold: float = 0.8) -> list[str]:
+    """Per network width, each seed's first evaluation with success from p0 >= `threshold` (else its best
+    success where above 0), and how many seeds reached it within the shortest group's budget."""
+    budget = min(curve[-1][0] for _, curves in groups for curve in curves.values())
+    seeds = sorted({seed for _, curves in groups for seed in curves})
+    lines = ["| hidden units | " + " | ".join(f"seed {s}" for s in seeds) + f" | reached by {budget // 1000}k |",
+             "|---:|" + "---:|" * (len(seeds) + 1)]
+    for hidden, curves in groups:
+        cells, reached = [], 0
+        for seed in seeds:
+            first = next((step for step, success in curves[seed] if success >= threshold), None)
+            best = max(success for _, success in curves[seed])
+            end = curves[seed][-1][0]
+            reached += first is not None and first <= budget
+            cells.append(f"{first // 1000}k" if first is not None else
+                         f"not by {end // 1000}k" + (f" ({best:.2f})" if best > 0 else ""))
+        lines.append(f"| {hidden} | " + " | ".join(cells) + f" | {reached} of {len(seeds)} |")
+    return lines
+
+
 # --- the results index (results/*/.../config.json, provenance.json, metrics.csv) ---------------------------------
 
 @dataclass
@@ -470,6 +511,7 @@ PARTS: dict[str, Part] = {
     "speed-sac-throughput": Part(sac_throughput_source, sac_throughput_table),
     "speed-vector-env": Part(bench_text("env_throughput.txt"), vector_table),
     "speed-threads": Part(bench_text("threads_under_load.txt"), threads_table),
+    "speed-netsize": Part(netsize_source, netsize_table),
     "sweep-scaling": Part(bench_text("sweep_scaling.txt"), sweep_scaling_table),
     "results-index": Part(results_source, results_index)}
 

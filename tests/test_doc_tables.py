@@ -267,3 +267,12 @@ def test_every_folder_the_code_notes_name_holds_runs_without_provenance():
     runs, noted = doc_tables.results_source(ROOT)
     unrecorded = {run.folder for run in runs if not run.sessions}
     assert noted and set(noted) <= unrecorded, sorted(set(noted) - unrecorded)
+
+
+def test_the_network_size_table_counts_seeds_reaching_the_threshold_within_the_shortest_budget():
+    groups = [(64, {1: [(10_000, 0.0), (20_000, 0.0), (30_000, 0.9)], 2: [(10_000, 0.8), (20_000, 0.1), (30_000, 0.0)]}),
+              (256, {1: [(10_000, 0.0), (20_000, 0.5)], 2: [(10_000, 0.0), (20_000, 0.0)]})]
+    assert doc_tables.netsize_table(groups) == [
+        "| hidden units | seed 1 | seed 2 | reached by 20k |", "|---:|---:|---:|---:|",
+        "| 64 | 30k | 10k | 1 of 2 |",
+        "| 256 | not by 20k (0.50) | not by 20k | 0 of 2 |"]
