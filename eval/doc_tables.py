@@ -256,11 +256,13 @@ def profile_table(text: str) -> list[str]:
         (f"update ({job['updates']:,} batched updates)", ["update: total"]),
         ("- TD target (actor and target critics, no gradient)", ["update: TD target (actor + target critics, no grad)"]),
         ("- critics (forward, backward, Adam)", ["update: critics (forward, backward, Adam)"]),
-        ("- actor (forward through the critics, backward, Adam)", ["update: actor (forward through critics, backward, Adam)"]),
+        ("- actor (forward through the critics, backward, Adam)",
+         ["update: actor (forward through critics, backward, Adam)"]),
         ("- entropy coefficient; Polyak step and statistics",
          ["update: alpha (loss, backward, Adam)", "update: Polyak step of target critics, statistics"]),
         ("- (of these, the three Adam steps)", ["of which Adam steps (3 optimisers)"]),
-        (f"training env steps (vector env, {job['seeds'] * job['steps']:,} sub-env steps)", ["train: env step (vector env)"]),
+        (f"training env steps (vector env, {job['seeds'] * job['steps']:,} sub-env steps)",
+         ["train: env step (vector env)"]),
         ("replay sampling (per-seed samples, stacked)", ["train: replay sampling"]),
         ("actor forward for acting", ["train: actor forward (acting)"]),
         ("resets, storing transitions, checkpoints, loop",
@@ -280,8 +282,10 @@ def profile_table(text: str) -> list[str]:
     return lines
 
 
-EVAL_ACTORS = {"untrained SAC actors": "untrained SAC actors", "BC actors, 300 updates": "behaviour-cloned actors, 300 updates"}
-_EVAL_ROW = r"^(untrained SAC actors|BC actors, \d+ updates) \((\d+x\d+)\)\s+[\d.]+ / [\d.]+\s+(.*?)\s+(?:identical|differ)$"
+EVAL_ACTORS = {"untrained SAC actors": "untrained SAC actors",
+               "BC actors, 300 updates": "behaviour-cloned actors, 300 updates"}
+_EVAL_ROW = (r"^(untrained SAC actors|BC actors, \d+ updates) \((\d+x\d+)\)\s+[\d.]+ / [\d.]+\s+(.*?)"
+             r"\s+(?:identical|differ)$")
 
 
 def _eval_rows(block: str) -> list[tuple[str, list[float]]]:
@@ -304,7 +308,8 @@ def walls_only_table(text: str) -> list[str]:
     lines = ["| actors | per seed, checked loop near walls: CPU s | batched, checked near walls: CPU s | batched, "
              "walls-only path: CPU s | per seed / batched | checked / walls-only |", "|---|---:|---:|---:|---:|---:|"]
     for label, (_, seed_cpu, _, checked_cpu, _, walls_cpu, ratio, walls_ratio) in _eval_rows(latest):
-        lines.append(f"| {label} | {seed_cpu:.1f} | {checked_cpu:.1f} | {walls_cpu:.1f} | {ratio:.2f} | {walls_ratio:.2f} |")
+        lines.append(f"| {label} | {seed_cpu:.1f} | {checked_cpu:.1f} | {walls_cpu:.1f} | {ratio:.2f} "
+                     f"| {walls_ratio:.2f} |")
     return lines
 
 
@@ -343,15 +348,18 @@ def sac_throughput_source(root: Path) -> tuple[str, str]:
     return tuple((root / BENCH / f"sac_throughput_64_t{threads}.txt").read_text() for threads in (1, 2))
 
 
-WAIT_POLICIES = {"PASSIVE (CLI default)": "`PASSIVE` (what the CLI sets)", "libgomp default": "libgomp's default (before)"}
+WAIT_POLICIES = {"PASSIVE (CLI default)": "`PASSIVE` (what the CLI sets)",
+                 "libgomp default": "libgomp's default (before)"}
 
 
 def threads_table(text: str) -> list[str]:
     """bench/threads_under_load.py, its first run: steps/s idle and beside a busy process per OpenMP wait policy."""
     first = text.split("\n\n")[0]
-    lines = ["| OpenMP wait policy | idle: steps/s | beside a busy process: steps/s | busy / idle |", "|---|---:|---:|---:|"]
-    for policy, idle, loaded, ratio in _matches(r"^(PASSIVE \(CLI default\)|libgomp default)\s+([\d.]+)\s+([\d.]+)\s+([\d.]+)$",
-                                                first, "threads_under_load.txt"):
+    lines = ["| OpenMP wait policy | idle: steps/s | beside a busy process: steps/s | busy / idle |",
+             "|---|---:|---:|---:|"]
+    rows = _matches(r"^(PASSIVE \(CLI default\)|libgomp default)\s+([\d.]+)\s+([\d.]+)\s+([\d.]+)$", first,
+                    "threads_under_load.txt")
+    for policy, idle, loaded, ratio in rows:
         lines.append(f"| {WAIT_POLICIES[policy]} | {idle} | {loaded} | {ratio} |")
     return lines
 
@@ -467,14 +475,15 @@ def results_index(data: tuple[list[RunRecord], dict[str, str]]) -> list[str]:
         if unrecorded:
             commits.append(f"{unrecorded} run{'s' if unrecorded > 1 else ''} without provenance.json"
                            + (f", noted as {noted[folder]}" if folder in noted else ""))
-        machines = dict.fromkeys(" ".join(filter(None, [s.get("code", {}).get("platform"), s.get("code", {}).get("processor")]))
-                                 for s in sessions)
+        code = [s.get("code", {}) for s in sessions]
+        machines = dict.fromkeys(" ".join(filter(None, [c.get("platform"), c.get("processor")])) for c in code)
         walls = [run.wall_time for run in members if run.wall_time is not None]
         hours = f"{sum(walls) / 3600:,.1f} h" if walls else "-"
         if walls and len(walls) < len(members):
             hours += f" ({len(walls)} runs)"
-        lines.append(f"| `{folder}/` | {', '.join(sorted({r.method for r in members}))} | {format_seeds(sorted({r.seed for r in members}))} | "
-                     f"{len(members)} | {', '.join(commits) or '-'} | {'; '.join(m for m in machines if m) or '-'} | {hours} |")
+        methods, seeds = sorted({r.method for r in members}), sorted({r.seed for r in members})
+        lines.append(f"| `{folder}/` | {', '.join(methods)} | {format_seeds(seeds)} | {len(members)} | "
+                     f"{', '.join(commits) or '-'} | {'; '.join(m for m in machines if m) or '-'} | {hours} |")
     return lines
 
 

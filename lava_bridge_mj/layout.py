@@ -12,7 +12,7 @@ that is not bridge is lava, bounded by the outer walls::
     |                 |   lava pit    |                 |
     +-----------------+===============+-----------------+
 
-Why these defaults (docs/design.md section 3, measured in the README): with 4 N of force, damping 1
+Why these defaults (docs/design.md section 3; docs/environment.md measures them): with 4 N of force, damping 1
 (top speed 4 m/s) and 0.1 s per env step, momentum makes bridge states unsafe for a random policy,
 so the start-state safety signal is informative, while a uniformly random policy from p0 practically
 never crosses the 3 m long, 0.3 m wide bridge.
