@@ -117,8 +117,7 @@ def seeds_table(record: dict) -> list[str]:
     return lines
 
 
-
-# --- the difficulty table (results/suite/difficulty.md and the SAC-from-p0 runs) ------------------------------
+# --- the difficulty table (results/suite/difficulty.md and the SAC-from-p0 runs) ----------------------------
 
 def read_difficulty(text: str) -> tuple[list[str], list[list[str]]]:
     """The header cells and the task rows of the first table `bench/difficulty.py --out` writes."""
@@ -133,7 +132,7 @@ def best_p0_success(runs: dict[str, list[Path]]) -> dict[str, tuple[float, list[
     """Task -> (best success from p0 over every evaluation of every run, the runs' seeds, their last step)."""
     best = {}
     for task, metrics in runs.items():
-        rows = {path: list(csv.DictReader(path.open())) for path in metrics}
+        rows = {path: list(csv.DictReader(path.read_text().splitlines())) for path in metrics}
         seeds = sorted(json.loads((path.parent / "config.json").read_text())["seed"] for path in metrics)
         best[task] = (max(float(r["success_p0"]) for rs in rows.values() for r in rs), seeds,
                       max(int(r["step"]) for rs in rows.values() for r in rs))
@@ -163,7 +162,7 @@ def difficulty_table(data: tuple[list[str], list[list[str]], dict]) -> list[str]
     return lines
 
 
-# --- the speed tables (results/bench/*.txt) ---------------------------------------------------------------------
+# --- the speed tables (results/bench/*.txt) -----------------------------------------------------------------
 
 def bench_text(name: str) -> Callable[[Path], str]:
     def source(root: Path) -> str:
@@ -419,7 +418,7 @@ def netsize_table(groups: list[tuple[int, dict[int, list[tuple[int, float]]]]], 
     return lines
 
 
-# --- the results index (results/*/.../config.json, provenance.json, metrics.csv) ---------------------------------
+# --- the results index (results/*/.../config.json, provenance.json, metrics.csv) ----------------------------
 
 @dataclass
 class RunRecord:
@@ -487,7 +486,7 @@ def results_index(data: tuple[list[RunRecord], dict[str, str]]) -> list[str]:
     return lines
 
 
-# --- the parts and the mechanism ----------------------------------------------------------------------------------
+# --- the parts and the mechanism ----------------------------------------------------------------------------
 
 @dataclass(frozen=True)
 class Part:
