@@ -42,10 +42,7 @@ def candidate_states(config: RunConfig) -> tuple[np.ndarray, np.ndarray | None]:
             raise ValueError(f"{config.method} needs demo episodes that end in success, but none of the "
                              f"{int(demos['episode_ids'][-1]) + 1} episodes of demo file {config.demos} does")
         return states, episode_ids
-    states = demos[field]
-    rng = np.random.default_rng([config.seed, 2024])  # its own stream: independent of training draws
-    size = min(config.demo_subset, len(states))
-    return states[np.sort(rng.choice(len(states), size=size, replace=False))], None
+    return lava_bridge_mj.candidate_states(demos[field], config.demo_subset, config.seed), None
 
 
 class SeedRun:

@@ -24,7 +24,7 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 
 import gymnasium  # noqa: E402
 
-from lava_bridge_mj.demos import load_demos, record_demos, save_demos  # noqa: E402
+from lava_bridge_mj.demos import candidate_states, load_demos, record_demos, save_demos  # noqa: E402
 from lava_bridge_mj.expert import ScriptedExpert  # noqa: E402
 from lava_bridge_mj.external import EXTERNAL_TASKS, make_task_env  # noqa: E402
 from lava_bridge_mj.layout import Disc, Layout  # noqa: E402
@@ -57,9 +57,9 @@ def register_envs() -> None:
 register_envs()
 
 __all__ = ["ENV_ID", "MAX_EPISODE_STEPS", "SUITE", "TASKS", "TASK_DOCS", "Disc", "Layout", "LavaBridgeEnv", "LavaBridgeTask",
-           "LavaBridgeVectorEnv", "ResetToState", "RunConfig", "START_NAMES", "ScriptedExpert", "load_demos",
-           "EXTERNAL_TASKS", "make_task_env", "record_demos", "register_envs", "save_demos", "start_distribution",
-           "task_layout", "train"]
+           "LavaBridgeVectorEnv", "ResetToState", "RunConfig", "START_NAMES", "ScriptedExpert", "candidate_states",
+           "load_demos", "EXTERNAL_TASKS", "make_task_env", "record_demos", "register_envs", "save_demos",
+           "start_distribution", "task_layout", "train"]
 
 
 def __getattr__(name: str):

@@ -263,6 +263,25 @@ def load_demos(size: int = 500, path: str | Path | None = None, env_id: str = DE
     return demos
 
 
+def candidate_states(states: np.ndarray, n: int = 150, seed: int = 0) -> np.ndarray:
+    """The start strategies' candidate states of seed `seed`: a seeded random subset of `n` of `states`.
+
+    The benchmark's protocol (the paper's): each seed's strategies start from `n` = 150 demo states
+    drawn without replacement, in the demo set's order; all of them where there are fewer. Training
+    (`lava-bridge-bench`, `lava_bridge_mj.train`) takes its candidates from here, `states` being the
+    demo set's observations, so `candidate_states(load_demos(500)["observations"], seed=s)` are the
+    states a run of seed `s` starts from. The draw has its own generator, seeded by `(seed, 2024)`,
+    independent of any other draw of the run.
+    """
+    states = np.asarray(states)
+    if states.ndim != 2 or len(states) == 0:
+        raise ValueError(f"states: expected an (n, d) array of at least one state, got shape {states.shape}")
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise ValueError(f"n={n!r}: expected a positive whole number of states")
+    rng = np.random.default_rng([seed, 2024])
+    return states[np.sort(rng.choice(len(states), size=min(n, len(states)), replace=False))]
+
+
 def regenerate_demos(check: bool = False) -> bool:
     """Regenerate every task's shipped sets from their seeds: write them, or with `check` only compare.
 
