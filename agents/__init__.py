@@ -5,7 +5,8 @@ The start strategies take states of any length; what a task's coordinates mean c
 (agents/strategy_registry.py, which shows how to add one).
 
 The learners (`SAC`, `ReplayBuffer`) load torch, so they are imported on first use: the
-configurations and start strategies stay light."""
+configurations and start strategies stay light. `VecStartStateWrapper` (one strategy for all
+sub-envs of a Stable-Baselines3 VecEnv) loads stable-baselines3, on first use too."""
 
 from lava_bridge_mj.agents.auxss import AuxSS
 from lava_bridge_mj.agents.configs import SACConfig
@@ -26,8 +27,9 @@ from lava_bridge_mj.task_states import TaskStates, coordinate_spread, task_state
 
 __all__ = ["NO_STATE", "STRATEGIES", "STRATEGY_NAMES", "SAC", "AuxSS", "GoalDistSS", "OmegaSS", "P0Start",
            "ReplayBuffer", "ReverseCurriculumSS", "SACConfig", "StartStateWrapper", "StartStrategy", "StrategyContext",
-           "TaskStates", "UniformSS", "check_strategy_params", "coordinate_spread", "estimate_random_policy_safety",
-           "goal_reaching_demos", "make_start_strategy", "register", "strategy_parameters", "task_states_of"]
+           "TaskStates", "UniformSS", "VecStartStateWrapper", "check_strategy_params", "coordinate_spread",
+           "estimate_random_policy_safety", "goal_reaching_demos", "make_start_strategy", "register",
+           "strategy_parameters", "task_states_of"]
 
 
 def __getattr__(name: str):
@@ -39,4 +41,8 @@ def __getattr__(name: str):
         from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
 
         return ReplayBuffer
+    if name == "VecStartStateWrapper":
+        from lava_bridge_mj.agents.vec_start_state_wrapper import VecStartStateWrapper
+
+        return VecStartStateWrapper
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
