@@ -27,6 +27,7 @@ import io
 import os
 import re
 import signal
+import struct
 import sys
 import tempfile
 from contextlib import contextmanager
@@ -123,6 +124,8 @@ def record_rollouts(env, policy: Callable[[np.ndarray], np.ndarray], path: str |
             code, reason = _ffmpeg_failure(ffmpeg_log)  # imageio does not check how ffmpeg ended
             if reason:
                 raise OSError(code, reason, str(path))
+        if not whole_mp4(tmp):  # ffmpeg can end without a word, e.g. stopped by the file size limit
+            raise OSError(*_truncation_reason(tmp), str(path))
         if still is not None:
             image = io.BytesIO()
             imageio.imwrite(image, render_frame(env, trail), format=Path(still).suffix.lstrip(".").lower())
@@ -134,6 +137,39 @@ def record_rollouts(env, policy: Callable[[np.ndarray], np.ndarray], path: str |
         except OSError:  # not ours to remove (a directory of that name)
             pass
     return successes
+
+
+def whole_mp4(path: str | Path) -> bool:
+    """Whether `path` holds a whole MP4 file: its top-level boxes (ISO/IEC 14496-12: a 32-bit size, or 1
+    and a 64-bit size, then the type) end exactly at the end of the file, the index (`moov`), which
+    ffmpeg writes last, among them. A file cut short anywhere fails."""
+    size, offset, types = os.path.getsize(path), 0, set()
+    with open(path, "rb") as f:
+        while offset < size:
+            f.seek(offset)
+            header = f.read(16)
+            if len(header) < 8:
+                return False
+            box_size, box_type = struct.unpack(">I4s", header[:8])
+            if box_size == 1 and len(header) == 16:
+                box_size = struct.unpack(">Q", header[8:])[0]
+            elif box_size == 0:  # the box runs to the end of the file
+                box_size = size - offset
+            if box_size < 8:
+                return False
+            types.add(box_type)
+            offset += box_size
+    return offset == size and b"moov" in types
+
+
+def _truncation_reason(path: Path) -> tuple[int | None, str]:
+    """(errno, reason) for a video that ffmpeg left unfinished: the file size limit where it reached it."""
+    import resource
+
+    limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    if limit != resource.RLIM_INFINITY and os.path.getsize(path) >= limit:
+        return errno.EFBIG, f"{os.strerror(errno.EFBIG)} (the file size limit, {limit} bytes, cut it short)"
+    return None, "ffmpeg ended without finishing it"
 
 
 @contextmanager

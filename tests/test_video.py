@@ -2,6 +2,7 @@
 
 import os
 import shutil
+import signal
 import subprocess
 import sys
 
@@ -344,3 +345,44 @@ def test_a_full_disk_under_ffmpeg_names_the_disk_full_reason(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err == f"lava-bridge-bench video: error: cannot write {out}: No space left on device; nothing written\n"
     assert list(tmp_path.iterdir()) == []
+
+
+# --- a video cut short by the file size limit ---------------------------------------------------------
+def test_whole_mp4_tells_a_whole_video_from_any_cut_of_it(tmp_path):
+    from lava_bridge_mj.eval import video
+
+    out = tmp_path / "whole.mp4"
+    assert video.main(["--expert", "--episodes", "1", "--max-steps", "10", "--out", str(out)]) == 0
+    data = out.read_bytes()
+    assert video.whole_mp4(out)
+    cut = tmp_path / "cut.mp4"
+    for size in [*range(0, len(data), max(1, len(data) // 200)), len(data) - 1]:
+        cut.write_bytes(data[:size])
+        assert not video.whole_mp4(cut), f"a video cut to {size} of {len(data)} bytes passed as whole"
+
+
+@pytest.mark.parametrize("short_by", [1, "most"])
+def test_a_video_cut_short_by_the_file_size_limit_is_one_line_and_no_file(tmp_path, short_by):
+    """`ulimit -f` with SIGXFSZ ignored: ffmpeg's writes past the limit fail, and ffmpeg used to end without
+    a word, so the command printed "wrote" over a truncated file with exit 0. The limit one byte short of
+    the whole video cuts its index (written last); far short, its frames."""
+    import resource
+
+    from lava_bridge_mj.eval import video
+
+    whole = tmp_path / "whole.mp4"
+    argv = ["--expert", "--episodes", "1", "--max-steps", "10"]
+    assert video.main([*argv, "--out", str(whole)]) == 0
+    limit = whole.stat().st_size - 1 if short_by == 1 else whole.stat().st_size // 4
+
+    def limit_file_size():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    out = tmp_path / "clips" / "cut.mp4"
+    result = subprocess.run([sys.executable, "-m", "lava_bridge_mj.eval.cli", "video", *argv, "--out", str(out)],
+                            capture_output=True, text=True, preexec_fn=limit_file_size, timeout=300)
+    assert result.returncode != 0 and result.stdout == "", result.stdout + result.stderr
+    assert result.stderr == (f"lava-bridge-bench video: error: cannot write {out}: File too large (the file size "
+                             f"limit, {limit} bytes, cut it short); nothing written\n")
+    assert list(out.parent.iterdir()) == []  # neither the video nor its temporary file
