@@ -285,6 +285,15 @@ def handling_signals(handler):
             signal.signal(sig, old)
 
 
+def release_held_signals() -> None:
+    """Unblock SIGINT and SIGTERM, which the program's entry point (lava_bridge_bench.py) blocks while the
+    package loads: a signal that came meanwhile is delivered now, to the handlers in place. Commands call
+    it once their handlers are installed (`stopping_on_signals`); without the entry point (`python -m`)
+    nothing is blocked and it changes nothing."""
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
+
+
 def in_main_thread() -> bool:
     """Signal handlers can only be set from the main thread (not where a test or Ray calls main)."""
     return threading.current_thread() is threading.main_thread()

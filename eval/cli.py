@@ -156,17 +156,29 @@ def main(argv: list[str] | None = None) -> int:
     elif argv and argv[0] in COMMANDS:
         import importlib
 
-        return importlib.import_module(COMMANDS[argv[0]]).main(argv[1:]) or 0
+        command = importlib.import_module(COMMANDS[argv[0]])
+        with arguments.stopping_on_signals():
+            try:  # a signal held while the package loaded stops the command before it starts
+                arguments.release_held_signals()
+            except KeyboardInterrupt as stop:
+                return _stopped_during_start_up(f"lava-bridge-bench {argv[0]}", stop)
+        return command.main(argv[1:]) or 0
     elif argv and not argv[0].startswith("-"):
+        arguments.release_held_signals()
         return unknown_command(argv[0])
     with arguments.stopping_on_signals():  # before any start-up work: a signal then stops it too
         try:
+            arguments.release_held_signals()  # a signal that came while the package loaded: raised here
             return _train_command(argv, prog)
         except KeyboardInterrupt as stop:  # while loading, before training touched any run directory
-            signum = arguments.signal_of(stop)
-            print(f"lava-bridge-bench: {arguments.stop_reason(signum)} during start-up, before anything was "
-                  "written; run the same command again to start", file=sys.stderr)
-            return 128 + signum
+            return _stopped_during_start_up("lava-bridge-bench", stop)
+
+
+def _stopped_during_start_up(prog: str, stop: KeyboardInterrupt) -> int:
+    signum = arguments.signal_of(stop)
+    print(f"{prog}: {arguments.stop_reason(signum)} during start-up, before anything was written; run the same "
+          "command again to start", file=sys.stderr)
+    return 128 + signum
 
 
 def _train_command(argv: list[str], prog: str) -> int:

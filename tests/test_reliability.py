@@ -12,6 +12,7 @@ in this process, without a child's torch start-up.
 import csv
 import json
 import os
+import shlex
 import shutil
 import signal
 import struct
@@ -193,6 +194,48 @@ def test_a_signal_during_start_up_stops_the_run_in_one_line(config_file, tmp_pat
     assert stderr == ("lava-bridge-bench: interrupted by the user (SIGINT) during start-up, before anything was "
                       "written; run the same command again to start\n")
     assert not out.exists()
+
+
+def blocked_signals(pid):
+    """The signals process `pid` blocks (Linux: SigBlk of /proc/PID/status)."""
+    with open(f"/proc/{pid}/status") as status:
+        mask = int(next(line for line in status if line.startswith("SigBlk:")).split()[1], 16)
+    return {sig for sig in signal.Signals if mask >> (sig - 1) & 1}
+
+
+PROGRAM = os.path.join(os.path.dirname(sys.executable), "lava-bridge-bench")  # the installed console script
+START_UP_STOP = ("lava-bridge-bench: interrupted by the user (SIGINT) during start-up, before anything was written; "
+                 "run the same command again to start\n")
+
+
+def test_a_signal_while_the_package_loads_in_a_background_run_is_not_lost(config_file, tmp_path):
+    """`lava-bridge-bench train ... &` from a script, `kill -INT` 0.3 s later: the run still loads the package
+    (gymnasium, MuJoCo), before any handler of its own, and its SIGINT is inherited ignored. The signal was
+    discarded and the run trained to the end; the program now blocks SIGINT until its handler is in place."""
+    out = tmp_path / "run"
+    script = f"{shlex.join([PROGRAM, *arguments(config_file, out)])} & P=$!; sleep 0.3; kill -INT $P; wait $P"
+    result = subprocess.run(["bash", "-c", script], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 130, result.stdout + result.stderr
+    assert result.stderr == START_UP_STOP and not out.exists()
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="reads the process's signal mask from /proc")
+def test_a_signal_at_the_programs_first_moment_stops_it(config_file, tmp_path):
+    """SIGINT, inherited ignored, as soon as the program blocks it (its first act) and before any handler of
+    its own: the earliest moment a signal can be kept, whatever the machine's speed."""
+    out = tmp_path / "run"
+    process = subprocess.Popen([PROGRAM, *arguments(config_file, out)], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    deadline = time.monotonic() + 120
+    while signal.SIGINT not in blocked_signals(process.pid):
+        assert process.poll() is None and time.monotonic() < deadline, process.communicate()
+        time.sleep(0.001)
+    assert signal.SIGINT not in caught_signals(process.pid), "the handler came first: the window was missed"
+    process.send_signal(signal.SIGINT)
+    stdout, stderr = process.communicate(timeout=120)
+    assert process.returncode == 130, stdout + stderr
+    assert stderr == START_UP_STOP and not out.exists()
 
 
 def test_a_second_process_cannot_write_a_run_directory_in_use(config_file, tmp_path, capsys):
