@@ -76,7 +76,8 @@ class ReplayedEpisodes(gymnasium.Env):
         self.t += 1
         ended = self.t == self.length
         terminated = ended and (self.success or self.length < lava_bridge_mj.MAX_EPISODE_STEPS)
-        return np.zeros(4, np.float32), 0.0, terminated, ended and not terminated, {"is_success": ended and self.success}
+        info = {"is_success": ended and self.success}
+        return np.zeros(4, np.float32), 0.0, terminated, ended and not terminated, info
 
 
 def sub_env_states(venv):
