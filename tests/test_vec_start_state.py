@@ -88,7 +88,10 @@ def sub_env_states(venv):
 def run_random_actions(vec_env_cls):
     """STEPS random steps of N_ENVS LavaBridge-v0 sub-envs through VecStartStateWrapper; every start is
     checked against the sub-env's real state. Returns the strategy and each sub-env's finished episodes."""
-    venv = make_vec_env(ENV_ID, n_envs=N_ENVS, vec_env_cls=vec_env_cls)
+    # spawned workers: the default forkserver keeps a socket in the tests' temporary directory, which is
+    # removed before the forkserver's own clean-up at exit
+    kwargs = {"vec_env_kwargs": {"start_method": "spawn"}} if vec_env_cls is SubprocVecEnv else {}
+    venv = make_vec_env(ENV_ID, n_envs=N_ENVS, vec_env_cls=vec_env_cls, **kwargs)
     strategy = RecordingAuxSS(STATES)
     wrapper = VecStartStateWrapper(venv, strategy, seed=SEED)
     rng = np.random.default_rng(0)
