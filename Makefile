@@ -10,7 +10,7 @@ MKDOCS := NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs
 MESA_PACKAGES := libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 libosmesa6
 export MUJOCO_GL ?= egl
 
-.PHONY: run expert-video task-pictures test docs bench study study-extension report setup gl browser clean
+.PHONY: run expert-video task-pictures test docs bench study study-extension report compress-results setup gl browser clean
 
 # The main job: what the package is for, AuxSS against SAC from p0 on the same 5 seeds (80,000 steps, as
 # one sweep of two 5-seed jobs, one per core; 17 min on the idle 2-core machine, set-up included), then the report
@@ -132,6 +132,13 @@ report: setup
 	    results/study/LavaBridgeFarStart-v0/reverse_ss-d500 results/study_ablations/LavaBridgeFarStart-v0 \
 	    --seeds $(STUDY_SEEDS) --all-pairs --out docs/report_reverse_limit
 	$(BIN)/python -m lava_bridge_mj.eval.doc_tables
+
+# The plain episode logs (episodes.csv) under COMPRESS_DIRS rewritten in place as episodes.csv.gz, the form the
+# trainer writes, each checked to decompress to the bytes it replaces before the plain one goes
+# (eval/compress.py). The reports read both forms alike; safe to run again.
+COMPRESS_DIRS ?= results
+compress-results: setup
+	$(BIN)/python -m lava_bridge_mj.eval.compress $(COMPRESS_DIRS)
 
 setup: gl $(STAMP)
 

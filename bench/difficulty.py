@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import io
 import shlex
 import subprocess
 import sys
@@ -34,6 +35,7 @@ import numpy as np
 
 import lava_bridge_mj
 from lava_bridge_mj.agents.omega_ss import OmegaSS, estimate_random_policy_safety
+from lava_bridge_mj.eval import run_files
 
 CANDIDATES = 150
 """The runner's default candidate subset (RunConfig.demo_subset)."""
@@ -176,8 +178,8 @@ def sac_from_p0(root: Path) -> str:
             counts.add(len(evaluations))
             cells[seed] = " / ".join(f"{max(float(r[f'success_{start}']) for r in evaluations):.2f}"
                                      for start in ("p0", "ood"))
-            with open(run / "episodes.csv") as f:
-                outcomes = [int(r["success"]) for r in csv.DictReader(f)]
+            log = run_files.read_episode_log(run_files.episode_log_file(run)).decode()
+            outcomes = [int(r["success"]) for r in csv.DictReader(io.StringIO(log))]
             reached, episodes = reached + sum(outcomes), episodes + len(outcomes)
         seeds.update(runs)
         rows.append((env_id, cells, "none" if not reached else f"{reached:,} of {episodes:,} ({reached / episodes:.1%})"))

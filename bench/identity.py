@@ -4,8 +4,8 @@ Trains a fixed short run of every training method (2 seeds batched, tiny network
 steps, a few evaluation episodes; some methods on the 7,500-transition demo set) once with the
 working tree's code and once with the code of `--ref` (extracted with `git archive`), through the
 `lava-bridge-bench` command of each, side by side. Per method it prints whether metrics.csv (every
-column but wall_time), episodes.csv and start_weights.npz of every seed are bit-identical, and
-exits 1 if any differ or a run fails.
+column but wall_time), the episode log (its CSV, compressed or not) and start_weights.npz of every
+seed are bit-identical, and exits 1 if any differ or a run fails.
 
 Usage: python bench/identity.py [--ref COMMIT] [--steps 1500] [--jobs 2] [--keep DIR]
 (default --ref: the merge-base of HEAD and main)
@@ -26,6 +26,8 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
+
+from lava_bridge_mj.eval import run_files
 from single_seed_speed import commit_tree, importable_tree  # bench/ is on sys.path when this script runs
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -75,6 +77,8 @@ def compare(a: Path, b: Path) -> dict[str, str]:
         present = 0
         for seed in seeds:
             fa, fb = a / seed / kind, b / seed / kind
+            if kind == "episodes.csv":  # the log compressed or plain: the ref may predate compression
+                fa, fb = (run_files.episode_log_file(d / seed) or d / seed / kind for d in (a, b))
             if fa.exists() != fb.exists():
                 problems.append(f"{seed}: only in {'working tree' if fa.exists() else 'ref'}")
                 continue
@@ -84,7 +88,7 @@ def compare(a: Path, b: Path) -> dict[str, str]:
             if kind == "metrics.csv":
                 same = metrics_without_wall_time(fa) == metrics_without_wall_time(fb)
             elif kind == "episodes.csv":
-                same = fa.read_bytes() == fb.read_bytes()
+                same = run_files.read_episode_log(fa) == run_files.read_episode_log(fb)
             else:
                 with np.load(fa) as za, np.load(fb) as zb:
                     same = sorted(za.files) == sorted(zb.files) and all(

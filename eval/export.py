@@ -1,7 +1,7 @@
 """`lava-bridge-bench export RUNS RESULTS`: compact copies of finished runs, for committing to results/.
 
 A compact copy holds what `report`, `summary` and the findings read (config.json, provenance.json,
-metrics.csv with its checksum file metrics.csv.sha256, episodes.csv, start_weights.npz) and none of the
+metrics.csv with its checksum file metrics.csv.sha256, episodes.csv.gz, start_weights.npz) and none of the
 checkpoints, policies or videos: a few hundred kB per run instead of several MB. A run's metrics.csv is
 verified against its checksum file (eval/checksums.py) before it is copied. Every run directory under
 RUNS, at any depth, lands at the same relative path under RESULTS, so
@@ -30,13 +30,14 @@ from pathlib import Path
 from lava_bridge_mj.eval.atomic import atomic_write, nearest_existing
 from lava_bridge_mj.eval.checksums import checksum_file
 from lava_bridge_mj.eval.config import RunConfig
-from lava_bridge_mj.eval.run_files import DamagedFileError, read_config
+from lava_bridge_mj.eval.run_files import (EPISODE_LOG, PLAIN_EPISODE_LOG, DamagedFileError, episode_log_file,
+                                           gzip_bytes, read_config)
 from lava_bridge_mj.eval.summary import read_metrics
 
 CHECKSUMS = checksum_file("metrics.csv").name
-COMPACT_FILES = ("provenance.json", "metrics.csv", "episodes.csv", "start_weights.npz", CHECKSUMS, "config.json")
+COMPACT_FILES = ("provenance.json", "metrics.csv", EPISODE_LOG, "start_weights.npz", CHECKSUMS, "config.json")
 """The files a compact copy holds, in the order they are written: metrics.csv's checksum file after it,
-config.json last."""
+config.json last. The episode log always compressed, whichever form the run holds."""
 
 
 @dataclass
@@ -96,10 +97,15 @@ def export(runs: Path, results: Path, unfinished: bool = False) -> Export:
             done.refused.append(f"{name}: {why}")
             continue
         contents = {f: (source / f).read_bytes() for f in COMPACT_FILES if (source / f).is_file()}
+        log = episode_log_file(source)
+        if log is not None and log.name == PLAIN_EPISODE_LOG:  # a run from before logs were compressed
+            contents[EPISODE_LOG] = gzip_bytes(log.read_bytes())
+            contents = {f: contents[f] for f in COMPACT_FILES if f in contents}  # the writing order
         changed = {f: data for f, data in contents.items()
                    if not ((target / f).is_file() and (target / f).read_bytes() == data)}
         stale = CHECKSUMS in changed or (CHECKSUMS not in contents and (target / CHECKSUMS).exists())
-        if not changed and not stale:
+        plain = target / PLAIN_EPISODE_LOG  # an earlier copy's uncompressed log, replaced by the compressed one
+        if not changed and not stale and not (EPISODE_LOG in contents and plain.exists()):
             done.unchanged.append(name)
             continue
         blocked = nearest_existing(target)
@@ -112,6 +118,8 @@ def export(runs: Path, results: Path, unfinished: bool = False) -> Export:
             (target / CHECKSUMS).unlink(missing_ok=True)
         for file, data in changed.items():  # in COMPACT_FILES order: config.json last
             atomic_write(target / file, lambda f, data=data: f.write(data))
+        if EPISODE_LOG in contents:
+            plain.unlink(missing_ok=True)
         done.exported.append(name)
     return done
 

@@ -10,7 +10,9 @@ A run directory holds:
     metrics.csv.sha256  its checksum (eval/checksums.py): readers refuse a metrics.csv changed since it
                         was written
     start_weights.npz   the start strategy's candidate states and its weights at every evaluation
-    episodes.csv        one row per training episode of an online method (EPISODE_FIELDS)
+    episodes.csv.gz     one row per training episode of an online method (EPISODE_FIELDS), gzip CSV
+                        (`write_episode_log`; logs written before it was compressed are plain episodes.csv:
+                        `episode_log_file` finds either, `read_episode_log` reads either)
     checkpoint.pt       the latest checkpoint: everything needed to continue exactly
     checkpoint.prev.pt  the one before it (a resume falls back to it when the latest is damaged); a
                         kill while the latest is replaced leaves it alone, never two names of one file
@@ -38,11 +40,13 @@ when the run is resumed or overwritten.
 from __future__ import annotations
 
 import csv
+import gzip
 import io
 import json
 import os
 import shutil
 import zipfile
+import zlib
 from collections.abc import Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -55,8 +59,12 @@ from lava_bridge_mj.eval.checksums import CHECKSUM_SUFFIX, DamagedFileError, con
 
 CHECKPOINTS = ("checkpoint.pt", "checkpoint.prev.pt")
 """The latest checkpoint and the one before it (a resume falls back to it when the latest is damaged)."""
+EPISODE_LOG = "episodes.csv.gz"
+"""The episode log as the trainer writes it: EPISODE_FIELDS as CSV, gzip-compressed (`gzip_bytes`)."""
+PLAIN_EPISODE_LOG = "episodes.csv"
+"""The same CSV uncompressed, as runs wrote it before: still read, and converted by eval/compress.py."""
 RUN_FILES = ("config.json", "provenance.json", "metrics.csv", f"metrics.csv{CHECKSUM_SUFFIX}", "start_weights.npz",
-             "episodes.csv", *CHECKPOINTS, "final.pt", "rollouts.mp4")
+             EPISODE_LOG, PLAIN_EPISODE_LOG, *CHECKPOINTS, "final.pt", "rollouts.mp4")
 """What a run directory holds besides policies/: what --overwrite removes."""
 POLICIES = "policies"
 """policies/step_N.pt: the actor's weights at every evaluation."""
@@ -73,9 +81,9 @@ METRIC_FIELDS = ("step", "episodes", "success_p0", "success_ood", "return_p0", "
                  "wall_time")
 """metrics.csv: one row per evaluation."""
 EPISODE_FIELDS = ("episode", "step", "start_index", "start_x", "start_y", "length", "success", "return")
-"""episodes.csv: the episode's number (1-based), the training step it ended at, the candidate state it
-started from (-1: the env's own p0 start) and that start's position, its length, whether it reached
-the goal, its return. What separates 'never tried from there' from 'tried and failed' per start."""
+"""The episode log's columns: the episode's number (1-based), the training step it ended at, the
+candidate state it started from (-1: the env's own p0 start) and that start's position, its length,
+whether it reached the goal, its return. What separates 'never tried from there' from 'tried and failed' per start."""
 CHECKPOINT_VERSION = 3  # 3: optimisers in two parameter groups (seed_adam)
 
 
@@ -234,7 +242,7 @@ def append_provenance(directory: Path, session: dict[str, Any], resume: bool) ->
 def write_results(directory: Path, rows: Sequence[dict], steps: np.ndarray, states: np.ndarray,
                   probabilities: np.ndarray, episode_log: Sequence[tuple] | None) -> None:
     """metrics.csv (`rows`), start_weights.npz (the candidate `states` and their `probabilities` at
-    each evaluation's step) and, unless `episode_log` is None, episodes.csv."""
+    each evaluation's step) and, unless `episode_log` is None, the episode log (`write_episode_log`)."""
     text = io.StringIO()
     writer = csv.DictWriter(text, fieldnames=METRIC_FIELDS, lineterminator="\n")
     writer.writeheader()
@@ -243,11 +251,61 @@ def write_results(directory: Path, rows: Sequence[dict], steps: np.ndarray, stat
     atomic_write(directory / "start_weights.npz",
                  lambda f: np.savez(f, steps=steps, states=states, probabilities=probabilities))
     if episode_log is not None:
-        text = io.StringIO()
-        writer = csv.writer(text, lineterminator="\n")
-        writer.writerow(EPISODE_FIELDS)
-        writer.writerows(episode_log)
-        atomic_write_text(directory / "episodes.csv", text.getvalue())
+        write_episode_log(directory, episode_log)
+
+
+GZIP_LEVEL = 9
+"""zlib's strongest level (its default, 6, leaves the study's logs 0.3% larger): an episode log shrinks
+to about a sixth, and a 300,000-step run's log, a few hundred kB, still compresses in tens of
+milliseconds at each evaluation (bench/episode_log_read.py measures reading)."""
+
+
+def gzip_bytes(data: bytes) -> bytes:
+    """`data` gzip-compressed reproducibly: a fixed level, no file name and mtime 0 in the header (and
+    the standard library's fixed OS byte), so the same bytes always give the same file with one zlib."""
+    buffer = io.BytesIO()
+    with gzip.GzipFile(filename="", mode="wb", compresslevel=GZIP_LEVEL, fileobj=buffer, mtime=0) as f:
+        f.write(data)
+    return buffer.getvalue()
+
+
+def episode_log_text(rows: Sequence[tuple]) -> bytes:
+    """The episode log's CSV: the EPISODE_FIELDS header, then one line per row."""
+    text = io.StringIO()
+    writer = csv.writer(text, lineterminator="\n")
+    writer.writerow(EPISODE_FIELDS)
+    writer.writerows(rows)
+    return text.getvalue().encode()
+
+
+def write_episode_log(directory: Path, rows: Sequence[tuple]) -> None:
+    """The episode log `rows` as episodes.csv.gz, replaced atomically (the trainer rewrites the whole log
+    at every evaluation). A plain episodes.csv left by earlier code goes once the compressed log is
+    whole: a kill in between leaves both, and readers take the compressed one."""
+    payload = gzip_bytes(episode_log_text(rows))
+    atomic_write(directory / EPISODE_LOG, lambda f: f.write(payload))
+    (directory / PLAIN_EPISODE_LOG).unlink(missing_ok=True)
+
+
+def episode_log_file(run_dir: Path) -> Path | None:
+    """The run's episode log: episodes.csv.gz, else a plain episodes.csv, else None (offline methods and
+    runs from before episodes were logged have none)."""
+    for name in (EPISODE_LOG, PLAIN_EPISODE_LOG):
+        if (Path(run_dir) / name).is_file():
+            return Path(run_dir) / name
+    return None
+
+
+def read_episode_log(path: Path) -> bytes:
+    """The CSV bytes of an episode log file, compressed (.gz) or plain; ValueError naming the file when
+    its compressed form is damaged (truncated, a flipped bit: gzip checks its CRC-32 and length)."""
+    data = Path(path).read_bytes()
+    if Path(path).suffix != ".gz":
+        return data
+    try:
+        return gzip.decompress(data)
+    except (OSError, EOFError, zlib.error) as error:
+        raise ValueError(f"{path} is not a whole gzip file ({error}); restore it from its run") from None
 
 
 def save_checkpoint(directory: Path, state: dict, name: str = CHECKPOINTS[0]) -> None:

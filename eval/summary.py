@@ -10,7 +10,7 @@ evaluation. Per batch: how many seeds reached the threshold, and the means of th
 `--start-room STEP` adds the mean probability the start strategy put on candidate states inside the
 start room (where every p0 episode begins) over its logged evaluations up to STEP, from the run's
 start_weights.npz: docs/results.md's measure of how much a strategy still practises the p0 starts
-while it learns. Where the run logged its training episodes (episodes.csv), it also adds how many
+while it learns. Where the run logged its training episodes (episodes.csv.gz), it also adds how many
 training episodes started in the start room up to STEP and what share of them reached the goal:
 whether a seed that does not learn from p0 never tried from there, or tried and failed.
 """
@@ -24,6 +24,7 @@ import functools
 import io
 import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -38,15 +39,17 @@ THRESHOLD = 0.8
 METRIC_COLUMNS = ("step", "success_p0", "success_ood")
 """The metrics.csv columns every reader needs (eval/runner.py writes more)."""
 EPISODE_COLUMNS = ("step", "start_x", "start_y", "success")
-"""The episodes.csv columns the start-room count needs."""
+"""The episode log columns the start-room count needs."""
 
 
-def read_csv(path: Path, columns: tuple[str, ...]) -> list[dict[str, float]]:
-    """The rows of a CSV file of numbers as dicts; ValueError naming the file (and the line) when it
+def read_csv(path: Path, columns: tuple[str, ...],
+             read: Callable[[Path], bytes] = read_checked) -> list[dict[str, float]]:
+    """The rows of a CSV file of numbers as dicts, its bytes from `read` (`read_checked`, or
+    `run_files.read_episode_log` for an episode log); ValueError naming the file (and the line) when it
     cannot be read, does not match its checksum file (where it has one: eval/checksums.py), lacks one
     of `columns`, or holds something other than numbers."""
     try:
-        with io.StringIO(read_checked(path).decode(), newline="") as f:
+        with io.StringIO(read(path).decode(), newline="") as f:
             reader = csv.DictReader(f)
             missing = [name for name in columns if name not in (reader.fieldnames or ())]
             if missing:
@@ -139,10 +142,10 @@ def in_start_room(run_dir: Path, positions: np.ndarray) -> np.ndarray:
 def start_room_episodes(run_dir: Path, until: float) -> tuple[int, float]:
     """(training episodes that started in the start room and ended at steps <= `until`, the share of
     them that reached the goal); (0, nan) when the run has no episode log or no such episode."""
-    path = run_dir / "episodes.csv"
-    if not path.exists():
+    path = run_files.episode_log_file(run_dir)
+    if path is None:
         return 0, math.nan
-    log = [row for row in read_csv(path, EPISODE_COLUMNS) if row["step"] <= until]
+    log = [row for row in read_csv(path, EPISODE_COLUMNS, run_files.read_episode_log) if row["step"] <= until]
     if not log:
         return 0, math.nan
     starts = np.array([[r["start_x"], r["start_y"]] for r in log])
@@ -235,7 +238,7 @@ class CurriculumStall:
 
 def curriculum_stall(run_dir: Path, until: float) -> CurriculumStall | None:
     """Where a reverse_ss run's curriculum was not done by step `until`: how the training episodes that
-    started from its starts at the last evaluation by then (episodes.csv, up to `until`) ended. A start
+    started from its starts at the last evaluation by then (the episode log, up to `until`) ended. A start
     index only moves back, so these are every episode from it. None when the curriculum was done, there is
     no episode log, or its starts cannot be told (`curriculum_progress`'s None). The step limit of each
     episode is the curriculum's own (`ReverseCurriculumSS.time_limit`, with the settings the run recorded
@@ -246,8 +249,8 @@ def curriculum_stall(run_dir: Path, until: float) -> CurriculumStall | None:
     from lava_bridge_mj.agents.reverse_curriculum import ReverseCurriculumSS
 
     _, starts, episode_states, ids = _curriculum_starts(run_dir, until)
-    path = run_dir / "episodes.csv"
-    if starts is None or not path.exists():
+    path = run_files.episode_log_file(run_dir)
+    if starts is None or path is None:
         return None
     sessions = run_files.read_provenance(run_dir)
     config = read_config(run_dir)
@@ -259,7 +262,7 @@ def curriculum_stall(run_dir: Path, until: float) -> CurriculumStall | None:
                          f"curriculum here ({error})") from error
     env_limit = gymnasium.spec(str(config.get("env_id", lava_bridge_mj.ENV_ID))).max_episode_steps
     limits = {int(start): min(curriculum.time_limit(int(start)) or env_limit, env_limit) for start in starts}
-    log = [row for row in read_csv(path, EPISODE_COLUMNS + ("start_index", "length"))
+    log = [row for row in read_csv(path, EPISODE_COLUMNS + ("start_index", "length"), run_files.read_episode_log)
            if row["step"] <= until and int(row["start_index"]) in limits]
     goal = sum(row["success"] > 0 for row in log)
     time_limit = sum(row["success"] == 0 and row["length"] >= limits[int(row["start_index"])] for row in log)

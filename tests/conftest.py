@@ -13,6 +13,7 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 
 import contextlib  # noqa: E402
 import csv  # noqa: E402
+import io  # noqa: E402
 import re  # noqa: E402
 import shlex  # noqa: E402
 import shutil  # noqa: E402
@@ -112,11 +113,18 @@ def groups_in(root):
     return aggregate.group_runs(aggregate.find_runs(root))
 
 
+def episode_rows(run_dir):
+    """A run's episode log as csv.DictReader rows, read as the report reads it (compressed or plain)."""
+    from lava_bridge_mj.eval import run_files
+
+    return list(csv.DictReader(io.StringIO(run_files.read_episode_log(run_files.episode_log_file(run_dir)).decode())))
+
+
 def interrupted_copy(full_dir, resumed_dir):
     """What a run killed mid-way leaves: config, the metrics and episode log written so far (with rows
     past the checkpoint), and the checkpoint before the last one as its latest."""
     resumed_dir.mkdir()
-    for name in ("config.json", "metrics.csv", "episodes.csv"):
+    for name in ("config.json", "metrics.csv", "episodes.csv.gz"):
         if (full_dir / name).exists():
             shutil.copy(full_dir / name, resumed_dir / name)
     shutil.copy(full_dir / "checkpoint.prev.pt", resumed_dir / "checkpoint.pt")

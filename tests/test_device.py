@@ -19,7 +19,7 @@ from lava_bridge_mj.agents.sac import SAC
 from lava_bridge_mj.agents.seed_batch import stack_batches
 from lava_bridge_mj.eval import cli, sweep_jobs
 from lava_bridge_mj.eval.config import RunConfig
-from lava_bridge_mj.eval.run_files import load_torch, save_torch
+from lava_bridge_mj.eval.run_files import EPISODE_LOG, load_torch, save_torch
 
 
 
@@ -61,7 +61,7 @@ def test_an_explicit_cpu_device_trains_as_the_default_and_provenance_records_it(
     for seed in (0, 1):
         default, cpu = (default_and_cpu_runs / name / f"seed{seed}" for name in ("default", "cpu"))
         assert metrics_without_wall_time(cpu) == metrics_without_wall_time(default)
-        assert (cpu / "episodes.csv").read_text() == (default / "episodes.csv").read_text()
+        assert (cpu / EPISODE_LOG).read_bytes() == (default / EPISODE_LOG).read_bytes()
         assert json.loads((cpu / "provenance.json").read_text())[-1]["device"] == "cpu"
         assert json.loads((cpu / "config.json").read_text()) == json.loads((default / "config.json").read_text())
 

@@ -8,9 +8,10 @@ import pytest
 
 from conftest import interrupted_copy
 from lava_bridge_mj.agents.configs import SACConfig
-from lava_bridge_mj.eval import cli
+from lava_bridge_mj.eval import cli, run_files
 from lava_bridge_mj.eval.config import RunConfig
 from lava_bridge_mj.eval.export import CHECKSUMS, COMPACT_FILES, main
+from lava_bridge_mj.eval.run_files import EPISODE_LOG, PLAIN_EPISODE_LOG
 from lava_bridge_mj.eval.runner import train
 
 TINY = dict(method="auxss", steps=300, eval_every=100, eval_episodes=2, demo_subset=20,
@@ -51,6 +52,22 @@ def test_a_rerun_rewrites_nothing(runs, tmp_path, capsys):
     assert main([str(runs), str(results)]) == 0
     assert f"exported 0 run(s) to {results}, 2 unchanged" in capsys.readouterr().out
     assert {p: p.stat().st_mtime_ns for p in results.rglob("*") if p.is_file()} == stamps
+
+
+def test_a_plain_episode_log_is_copied_compressed_and_replaces_a_plain_copy(runs, tmp_path, capsys):
+    old = tmp_path / "old" / "auxss-d500" / "seed3"  # a run written before episode logs were compressed
+    shutil.copytree(runs / "auxss-d500/seed3", old, ignore=shutil.ignore_patterns(".lock"))
+    (old / PLAIN_EPISODE_LOG).write_bytes(run_files.read_episode_log(old / EPISODE_LOG))
+    (old / EPISODE_LOG).unlink()
+    results = tmp_path / "results"
+    shutil.copytree(old, results / "auxss-d500/seed3")  # an earlier export's copy, its log plain
+    assert main([str(tmp_path / "old"), str(results)]) == 0
+    assert "exported 1 run(s)" in capsys.readouterr().out
+    copy = results / "auxss-d500/seed3"
+    assert (copy / EPISODE_LOG).read_bytes() == (runs / "auxss-d500/seed3" / EPISODE_LOG).read_bytes()
+    assert not (copy / PLAIN_EPISODE_LOG).exists()
+    assert main([str(tmp_path / "old"), str(results)]) == 0
+    assert "1 unchanged" in capsys.readouterr().out
 
 
 def test_unfinished_runs_go_too_when_asked(runs, tmp_path):

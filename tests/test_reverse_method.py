@@ -1,7 +1,6 @@
 """`--method reverse_ss`: RFCL's reverse curriculum trained by the batched loop, from whole demo
 episodes, with its shortened time limits, recorded settings and an exact resume."""
 
-import csv
 import json
 
 import numpy as np
@@ -9,6 +8,7 @@ import pytest
 
 import lava_bridge_mj
 
+from conftest import episode_rows
 from test_runner import resume_from_mid_episode_checkpoint, tiny_config
 
 from lava_bridge_mj.agents.reverse_curriculum import ReverseCurriculumSS, goal_reaching_demos
@@ -26,8 +26,7 @@ def reverse_run(tmp_path_factory):
 
 
 def read_episodes(run_dir):
-    with open(run_dir / "episodes.csv") as f:
-        return list(csv.DictReader(f))
+    return episode_rows(run_dir)
 
 
 def test_it_starts_from_the_whole_goal_reaching_demo_episodes(reverse_run):

@@ -12,7 +12,7 @@ import torch
 
 import lava_bridge_mj
 
-from conftest import flip_a_data_bit, interrupted_copy, metrics_without_wall_time
+from conftest import episode_rows, flip_a_data_bit, interrupted_copy, metrics_without_wall_time
 
 from lava_bridge_mj.agents.sac import SACConfig
 from lava_bridge_mj.agents.goaldist_ss import GoalDistSS
@@ -20,7 +20,7 @@ from lava_bridge_mj.eval import cli
 from lava_bridge_mj.eval.provenance import git_state, processor
 from lava_bridge_mj.agents.methods import METHODS as METHOD_SPECS
 from lava_bridge_mj.eval.config import METHODS, RunConfig
-from lava_bridge_mj.eval.run_files import EPISODE_FIELDS, METRIC_FIELDS, RunDirectoryError, run_status, save_torch
+from lava_bridge_mj.eval.run_files import EPISODE_FIELDS, EPISODE_LOG, METRIC_FIELDS, RunDirectoryError, run_status, save_torch
 from lava_bridge_mj.eval.runner import Run, train
 
 TINY_SAC = SACConfig(hidden_sizes=(16, 16), batch_size=32, buffer_size=500, learning_starts=100)
@@ -92,8 +92,7 @@ def test_every_method_writes_a_complete_run_directory(trained, method):
 def test_the_episode_log_accounts_for_every_training_step_and_start(trained, method, steps):
     config = tiny_config(method, steps=steps)
     tmp_path, run = trained(config)
-    with open(tmp_path / "episodes.csv") as f:
-        log = list(csv.DictReader(f))
+    log = episode_rows(tmp_path)
     assert list(log[0]) == list(EPISODE_FIELDS)
     assert len(log) == int(read_metrics(tmp_path / "metrics.csv")[-1]["episodes"]) > 1
     episode, step, index, length = (np.array([int(r[k]) for r in log]) for k in ("episode", "step", "start_index",
@@ -144,7 +143,7 @@ def resume_from_mid_episode_checkpoint(config, full_dir, full, resumed_dir):
     resumed = train(config, resumed_dir, resume=True, progress=False)
 
     assert metrics_without_wall_time(resumed_dir) == metrics_without_wall_time(full_dir)
-    assert (resumed_dir / "episodes.csv").read_text() == (full_dir / "episodes.csv").read_text()
+    assert (resumed_dir / EPISODE_LOG).read_bytes() == (full_dir / EPISODE_LOG).read_bytes()
     for name, tensor in full.agent.actor.state_dict().items():
         assert torch.equal(tensor, resumed.agent.actor.state_dict()[name]), name
     return resumed
@@ -387,7 +386,7 @@ def seed_files(directory):
     weights = np.load(directory / "start_weights.npz")
     policies = {p.name: torch.load(p) for p in sorted((directory / "policies").iterdir())}
     return (metrics_without_wall_time(directory), weights["probabilities"], policies,
-            (directory / "episodes.csv").read_text())
+            (directory / EPISODE_LOG).read_bytes())
 
 
 @pytest.mark.parametrize("method", ["auxss", "sac"])

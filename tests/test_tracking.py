@@ -15,9 +15,10 @@ import time
 import numpy as np
 import pytest
 
+from conftest import episode_rows
 from lava_bridge_mj.eval import cli, tracking
 from lava_bridge_mj.eval.config import RunConfig
-from lava_bridge_mj.eval.run_files import RunDirectoryError, run_files
+from lava_bridge_mj.eval.run_files import EPISODE_LOG, RunDirectoryError, run_files
 
 TINY = dict(steps=200, eval_every=100, eval_episodes=2, sac={"hidden_sizes": [8, 8], "learning_starts": 50,
                                                                "batch_size": 16})
@@ -43,8 +44,7 @@ def tensorboard_events(out):
 
 
 def episodes(out):
-    with open(out / "episodes.csv") as f:
-        return list(csv.DictReader(f))
+    return episode_rows(out)
 
 
 def scalars(events, tag):
@@ -75,7 +75,7 @@ def test_training_scalars_arrive_while_training_under_sb3_names_and_evaluations_
         logged = dict(scalars(events, tag))
         for step, row in rows.items():
             assert logged[step] == pytest.approx(float(row[column]), rel=1e-6), (tag, step)
-    # rollout/: the episodes ended by each logged step, as episodes.csv lists them
+    # rollout/: the episodes ended by each logged step, as the episode log lists them
     ended = episodes(tmp_path)
     for tag, field in (("rollout/ep_rew_mean", "return"), ("rollout/ep_len_mean", "length"),
                        ("rollout/success_rate", "success")):
@@ -88,7 +88,7 @@ def test_training_scalars_arrive_while_training_under_sb3_names_and_evaluations_
 
 
 def test_rollout_scalars_average_the_last_100_episodes_and_skip_what_is_not_finite():
-    # episodes.csv rows: episode, step, start_index, start_x, start_y, length, success, return
+    # episode log rows: episode, step, start_index, start_x, start_y, length, success, return
     rows = [(n, 10 * n, -1, 0.0, 0.0, n % 7 + 1, n % 2, float(n)) for n in range(1, 151)]
     logged = tracking.training_scalars({"critic_loss": 0.5, "alpha": 0.2, "q_mean": float("nan")}, rows,
                                        {"fps": 600.0, "episodes": 150})
@@ -121,7 +121,7 @@ def test_logging_leaves_the_results_bit_identical(tmp_path):
         plain, logged = tmp_path / "plain" / seed, tmp_path / "logged" / seed
         assert [{k: v for k, v in row.items() if k != "wall_time"} for row in metrics(plain)] == \
             [{k: v for k, v in row.items() if k != "wall_time"} for row in metrics(logged)]
-        assert (plain / "episodes.csv").read_bytes() == (logged / "episodes.csv").read_bytes()
+        assert (plain / EPISODE_LOG).read_bytes() == (logged / EPISODE_LOG).read_bytes()
         with np.load(plain / "start_weights.npz") as a, np.load(logged / "start_weights.npz") as b:
             assert all(a[key].tobytes() == b[key].tobytes() for key in a.files)
         assert (logged / "tensorboard").is_dir() and not (plain / "tensorboard").exists()

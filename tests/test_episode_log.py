@@ -1,0 +1,153 @@
+"""The episode log stored compressed: a deterministic gzip writer, one reader for both forms, the
+in-place conversion of plain logs (eval/compress.py), a resumed run from a plain log, and reports
+that read the same from either form."""
+
+import gzip
+import shutil
+from pathlib import Path
+
+import pytest
+
+from conftest import interrupted_copy
+from test_runner import tiny_config, trained  # noqa: F401 (trained: the module's fixture, shared)
+
+from lava_bridge_mj.eval import cli, compress, run_files
+from lava_bridge_mj.eval.run_files import EPISODE_LOG, PLAIN_EPISODE_LOG
+from lava_bridge_mj.eval.runner import train
+from lava_bridge_mj.eval.summary import EPISODE_COLUMNS, read_csv
+
+ROOT = Path(__file__).resolve().parent.parent
+ROWS = [(1, 8, 141, 0.8869671685798248, -3.16e-10, 8, 0, 0.0), (2, 29, -1, 3.17, 0.5385, 21, 1, 1.0)]
+
+
+def write_plain(run_dir, rows):
+    run_dir.mkdir(parents=True, exist_ok=True)
+    (run_dir / PLAIN_EPISODE_LOG).write_bytes(run_files.episode_log_text(rows))
+
+
+def test_the_gzip_writer_gives_the_same_bytes_for_the_same_rows(tmp_path):
+    for name, rows in (("a", ROWS), ("b", [tuple(row) for row in ROWS])):
+        (tmp_path / name).mkdir()
+        run_files.write_episode_log(tmp_path / name, rows)
+    first, second = ((tmp_path / name / EPISODE_LOG).read_bytes() for name in "ab")
+    assert first == second
+    # the header: gzip magic, deflate, no flags (so no file name), mtime 0, the level-9 flag, OS 255
+    assert first[:10] == b"\x1f\x8b\x08\x00\x00\x00\x00\x00\x02\xff"
+    assert gzip.decompress(first) == b"episode,step,start_index,start_x,start_y,length,success,return\n" \
+        b"1,8,141,0.8869671685798248,-3.16e-10,8,0,0.0\n2,29,-1,3.17,0.5385,21,1,1.0\n"
+    run_files.write_episode_log(tmp_path / "b", ROWS[:1])
+    assert (tmp_path / "b" / EPISODE_LOG).read_bytes() != first
+
+
+def test_the_reader_reads_both_forms_to_the_same_rows_and_prefers_the_compressed_one(tmp_path):
+    write_plain(tmp_path / "plain", ROWS)
+    (tmp_path / "gzip").mkdir()
+    run_files.write_episode_log(tmp_path / "gzip", ROWS)
+    plain, packed = (run_files.episode_log_file(tmp_path / name) for name in ("plain", "gzip"))
+    assert (plain.name, packed.name) == (PLAIN_EPISODE_LOG, EPISODE_LOG)
+    rows = read_csv(plain, EPISODE_COLUMNS, run_files.read_episode_log)
+    assert rows == read_csv(packed, EPISODE_COLUMNS, run_files.read_episode_log)
+    assert [r["start_x"] for r in rows] == [0.8869671685798248, 3.17]
+    assert run_files.episode_log_file(tmp_path) is None
+    # both present (a conversion killed before the plain file went): the compressed log is the run's
+    write_plain(tmp_path / "gzip", ROWS[:1])
+    assert run_files.episode_log_file(tmp_path / "gzip").name == EPISODE_LOG
+
+
+def test_a_damaged_compressed_log_is_refused_by_name(tmp_path):
+    run_files.write_episode_log(tmp_path, ROWS)
+    path = tmp_path / EPISODE_LOG
+    data = bytearray(path.read_bytes())
+    data[20] ^= 0x01
+    path.write_bytes(bytes(data))
+    with pytest.raises(ValueError, match="episodes.csv.gz is not a whole gzip file"):
+        read_csv(path, EPISODE_COLUMNS, run_files.read_episode_log)
+    path.write_bytes(run_files.gzip_bytes(run_files.episode_log_text(ROWS))[:-3])
+    with pytest.raises(ValueError, match="episodes.csv.gz is not a whole gzip file"):
+        run_files.read_episode_log(path)
+
+
+def test_compressing_converts_every_plain_log_once_to_the_trainers_bytes(tmp_path, capsys):
+    runs = {tmp_path / "task" / "auxss-d500" / f"seed{seed}": ROWS[:seed + 1] for seed in (0, 1)}
+    for run, rows in runs.items():
+        write_plain(run, rows)
+    plain_bytes = {run: (run / PLAIN_EPISODE_LOG).read_bytes() for run in runs}
+    assert compress.main([str(tmp_path / "task")]) == 0
+    assert "compressed 2 episode logs" in capsys.readouterr().out
+    for run, rows in runs.items():
+        assert not (run / PLAIN_EPISODE_LOG).exists()
+        assert gzip.decompress((run / EPISODE_LOG).read_bytes()) == plain_bytes[run]
+        (tmp_path / "trainer").mkdir(exist_ok=True)
+        run_files.write_episode_log(tmp_path / "trainer", rows)
+        assert (run / EPISODE_LOG).read_bytes() == (tmp_path / "trainer" / EPISODE_LOG).read_bytes()
+    before = {run: (run / EPISODE_LOG).stat().st_mtime_ns for run in runs}
+    assert compress.main([str(tmp_path / "task")]) == 0  # again: nothing left to convert, nothing rewritten
+    assert "compressed 0 episode logs" in capsys.readouterr().out
+    assert {run: (run / EPISODE_LOG).stat().st_mtime_ns for run in runs} == before
+
+
+def test_compressing_refuses_a_log_whose_check_fails_and_leaves_it_plain(tmp_path, monkeypatch, capsys):
+    write_plain(tmp_path / "seed0", ROWS)
+    original = (tmp_path / "seed0" / PLAIN_EPISODE_LOG).read_bytes()
+    monkeypatch.setattr(compress, "gzip_bytes", lambda data: run_files.gzip_bytes(data[:-1]))  # loses a byte
+    assert compress.main([str(tmp_path)]) == 1
+    assert "does not decompress to the same bytes; left plain" in capsys.readouterr().err
+    assert (tmp_path / "seed0" / PLAIN_EPISODE_LOG).read_bytes() == original
+    assert not (tmp_path / "seed0" / EPISODE_LOG).exists()
+
+
+def test_compressing_finishes_a_killed_conversion_and_refuses_a_compressed_log_with_other_rows(tmp_path, capsys):
+    for seed, rows in ((0, ROWS), (1, ROWS[:1])):
+        write_plain(tmp_path / f"seed{seed}", ROWS)
+        run_files.write_episode_log(tmp_path / f"seed{seed}", rows)
+        write_plain(tmp_path / f"seed{seed}", ROWS)  # the writer removed it: put it back
+    assert compress.main([str(tmp_path)]) == 1
+    refusal = f"{tmp_path / 'seed1' / PLAIN_EPISODE_LOG}: {EPISODE_LOG} beside it holds other rows"
+    assert refusal in capsys.readouterr().err
+    assert not (tmp_path / "seed0" / PLAIN_EPISODE_LOG).exists()
+    assert (tmp_path / "seed1" / PLAIN_EPISODE_LOG).exists()
+    assert run_files.read_episode_log(tmp_path / "seed1" / EPISODE_LOG) == run_files.episode_log_text(ROWS[:1])
+
+
+def test_compressing_a_directory_that_is_not_one_exits_2(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        compress.main([str(tmp_path / "missing")])
+    assert exit_.value.code == 2
+    assert "is not a directory" in capsys.readouterr().err
+
+
+def test_a_run_killed_with_a_plain_log_resumes_to_the_uninterrupted_compressed_log(trained, tmp_path):
+    config = tiny_config("auxss")
+    full_dir, _ = trained(config)
+    interrupted_copy(full_dir, tmp_path / "resumed")
+    resumed = tmp_path / "resumed"
+    # the log as code before compression wrote it, with the rows up to the kill
+    (resumed / PLAIN_EPISODE_LOG).write_bytes(run_files.read_episode_log(resumed / EPISODE_LOG))
+    (resumed / EPISODE_LOG).unlink()
+    train(config, resumed, resume=True, progress=False)
+    assert (resumed / EPISODE_LOG).read_bytes() == (full_dir / EPISODE_LOG).read_bytes()
+    assert not (resumed / PLAIN_EPISODE_LOG).exists()
+
+
+def test_a_converted_runs_report_equals_its_report_before_conversion(tmp_path):
+    # reverse_ss seeds whose curricula were not done: the report counts how their episodes ended from the log
+    source = ROOT / "results/study/LavaBridge-v0/reverse_ss-d500"
+    runs = tmp_path / "runs" / "reverse_ss-d500"
+    for seed in (10, 11):
+        shutil.copytree(source / f"seed{seed}", runs / f"seed{seed}")
+        log = run_files.episode_log_file(runs / f"seed{seed}")
+        data = run_files.read_episode_log(log)
+        log.unlink()
+        (runs / f"seed{seed}" / PLAIN_EPISODE_LOG).write_bytes(data)
+
+    def report(name):
+        assert cli.main(["report", str(tmp_path / "runs"), "--seeds", "10-11", "--out", str(tmp_path / name)]) == 0
+        return {f: (tmp_path / name / f).read_bytes() for f in ("report.md", "answers.json")
+                if (tmp_path / name / f).exists()}
+
+    before = report("plain")
+    assert compress.main([str(tmp_path / "runs")]) == 0
+    assert report("gzip") == before
+    for seed in (10, 11):  # the log is read: without it the report says less
+        (runs / f"seed{seed}" / EPISODE_LOG).unlink()
+    assert report("none")["report.md"] != before["report.md"]
