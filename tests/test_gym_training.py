@@ -19,7 +19,7 @@ import lava_bridge_mj
 from lava_bridge_mj import RunConfig, ResetToState, load_demos, record_demos, save_demos, train
 from lava_bridge_mj.agents.methods import METHODS
 from lava_bridge_mj.eval.cli import main as cli_main
-from lava_bridge_mj.eval.run_files import RunDirectoryError
+from lava_bridge_mj.eval.run_files import EPISODE_LOG, RunDirectoryError
 from lava_bridge_mj.state_vector import ResetToStateVectorEnv
 from lava_bridge_mj.task_states import TaskStates
 
@@ -255,7 +255,7 @@ def test_a_seed_trained_in_a_batch_equals_the_seed_trained_alone(demo_files, tra
     batch_dirs, _ = trained(config, seeds=(3, 4))
     alone_dirs, _ = trained(config)
     assert metrics_without_wall_time(batch_dirs[0]) == metrics_without_wall_time(alone_dirs[0])
-    assert (batch_dirs[0] / "episodes.csv").read_text() == (alone_dirs[0] / "episodes.csv").read_text()
+    assert (batch_dirs[0] / EPISODE_LOG).read_bytes() == (alone_dirs[0] / EPISODE_LOG).read_bytes()
     for name in ("step_100.pt", "step_300.pt"):
         a, b = (torch.load(d[0] / "policies" / name) for d in (batch_dirs, alone_dirs))
         assert all(torch.equal(a[k], b[k]) for k in a)
@@ -270,7 +270,7 @@ def test_a_run_interrupted_mid_episode_and_resumed_equals_the_uninterrupted_run(
     interrupted_copy(full_dir, tmp_path / "resumed")
     resumed = train(config, tmp_path / "resumed", resume=True, progress=False)
     assert metrics_without_wall_time(tmp_path / "resumed") == metrics_without_wall_time(full_dir)
-    assert (tmp_path / "resumed" / "episodes.csv").read_text() == (full_dir / "episodes.csv").read_text()
+    assert (tmp_path / "resumed" / EPISODE_LOG).read_bytes() == (full_dir / EPISODE_LOG).read_bytes()
     for name, tensor in full.agent.actor.state_dict().items():
         assert torch.equal(tensor, resumed.agent.actor.state_dict()[name]), name
 
