@@ -13,6 +13,7 @@ from lava_bridge_mj.agents.configs import SACConfig
 from lava_bridge_mj.agents.goaldist_ss import GoalDistSS
 from lava_bridge_mj.agents.omega_ss import OmegaSS, estimate_random_policy_safety
 from lava_bridge_mj.agents.reverse_curriculum import ReverseCurriculumSS, goal_reaching_demos
+from lava_bridge_mj.agents.rfcl import RFCLReverseSS, RFCLSS
 from lava_bridge_mj.agents.start_state_wrapper import StartStateWrapper
 from lava_bridge_mj.agents.start_strategies import NO_STATE, P0Start, StartStrategy, StrategyContext, UniformSS
 from lava_bridge_mj.agents.strategy_registry import (
@@ -26,9 +27,9 @@ from lava_bridge_mj.agents.strategy_registry import (
 from lava_bridge_mj.task_states import TaskStates, coordinate_spread, task_states_of
 
 __all__ = ["NO_STATE", "STRATEGIES", "STRATEGY_NAMES", "SAC", "AuxSS", "GoalDistSS", "OmegaSS", "P0Start",
-           "ReplayBuffer", "ReverseCurriculumSS", "SACConfig", "StartStateWrapper", "StartStrategy", "StrategyContext",
-           "TaskStates", "UniformSS", "VecStartStateWrapper", "check_strategy_params", "coordinate_spread",
-           "estimate_random_policy_safety", "goal_reaching_demos", "make_start_strategy", "register",
+           "RFCLReverseSS", "RFCLSS", "ReplayBuffer", "ReverseCurriculumSS", "SACConfig", "StartStateWrapper",
+           "StartStrategy", "StrategyContext", "TaskStates", "UniformSS", "VecStartStateWrapper", "check_strategy_params",
+           "coordinate_spread", "estimate_random_policy_safety", "goal_reaching_demos", "make_start_strategy", "register",
            "strategy_parameters", "task_states_of"]
 
 

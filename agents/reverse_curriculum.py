@@ -207,10 +207,16 @@ class ReverseCurriculumSS(StartStrategy):
 
     @property
     def phase(self) -> str:
-        """"reverse" while some demonstration is unsolved, then "forward" (with forward states) or "p0"."""
-        if not self._solved.all():
+        """"reverse" until the reverse stage is done (`reverse_done`: here, every demonstration solved), then
+        "forward" (with forward states) or "p0"."""
+        if not self.reverse_done:
             return "reverse"
         return "forward" if len(self._staleness) else "p0"
+
+    @property
+    def reverse_done(self) -> bool:
+        """Whether the reverse stage handed over to p0: once every demonstration is solved."""
+        return bool(self._solved.all())
 
     @property
     def probabilities(self) -> np.ndarray:
@@ -233,7 +239,7 @@ class ReverseCurriculumSS(StartStrategy):
     # --- sampling and feedback --------------------------------------------------------------
     def _refresh_weights(self) -> None:
         self._weights[:] = 0.0  # in place: views from `weights` follow
-        if self._solved.all():
+        if self.reverse_done:
             if len(self._staleness):
                 self._weights[self._num_demo_states:] = (
                     (1 - FORWARD_STALENESS_COEF) * rank_weights(forward_scores(self._forward_outcomes),

@@ -36,6 +36,7 @@ from .auxss import AuxSS
 from .goaldist_ss import GoalDistSS
 from .omega_ss import OmegaSS
 from .reverse_curriculum import ReverseCurriculumSS
+from .rfcl import RFCLReverseSS, RFCLSS
 from .start_strategies import CANDIDATE_SETS, P0Start, StartStrategy, StrategyContext, UniformSS
 
 STRATEGIES: dict[str, type[StartStrategy]] = {}
@@ -133,7 +134,7 @@ def check_strategy_params(name: str, params: Collection[str], from_config: bool 
 def make_start_strategy(name: str, states: Any = None, context: StrategyContext | None = None,
                         **params: Any) -> StartStrategy:
     """Build a start strategy by its CLI name: p0, auxss, omega_ss, uniform_ss, goaldist_ss,
-    reverse_ss, or any other registered one (`STRATEGIES`).
+    reverse_ss, rfcl_reverse, rfcl, or any other registered one (`STRATEGIES`).
 
     `states` is the (n, d) candidate set, of any length d (ignored, and may be None, for p0).
     Parameters are the class's keyword arguments (`strategy_parameters` lists them with their
@@ -163,7 +164,7 @@ def make_start_strategy(name: str, states: Any = None, context: StrategyContext 
     return strategy
 
 
-for _built_in in (P0Start, AuxSS, OmegaSS, UniformSS, GoalDistSS, ReverseCurriculumSS):
+for _built_in in (P0Start, AuxSS, OmegaSS, UniformSS, GoalDistSS, ReverseCurriculumSS, RFCLReverseSS, RFCLSS):
     register(_built_in)
 
 STRATEGY_NAMES = tuple(STRATEGIES)
