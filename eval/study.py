@@ -6,7 +6,8 @@ of one task:
 
 1. **Does a safety-derived start distribution beat the undirected ones?** AuxSS and Omega-SS, each
    against U-SS and GoalDist-SS: four pairs.
-2. **AuxSS or RFCL's reverse curriculum?** AuxSS against reverse_ss: one pair.
+2. **AuxSS or RFCL's reverse curriculum?** AuxSS against RFCL: one pair, against `rfcl` (RFCL as
+   published, its forward stage included) where the task has rfcl runs, else against `reverse_ss`.
 
 Each pair is compared on two aspects, as eval/claims.py compares them (matched seeds, each pair up to
 the last evaluation step both groups have):
@@ -63,10 +64,11 @@ QUESTIONS = (
      "Does a safety-derived start distribution (AuxSS, Omega-SS) beat uniform and goal-distance starts "
      "(U-SS, GoalDist-SS)?", tuple((a, b) for a in SAFETY for b in UNDIRECTED)),
     ("AuxSS against the reverse curriculum", "AuxSS or RFCL's reverse curriculum (reverse_ss)?",
-     (("auxss", "reverse_ss"),)),
+     (("auxss", ("rfcl", "reverse_ss")),)),
 )
 """Each question's short name, its text and the (A, B) pairs that answer it, A the side the question
-asks about."""
+asks about. A side given as a tuple of methods is the first of them that has a group on the task (the
+last when none has): RFCL as published stands in for the reverse curriculum where it was run."""
 ASPECTS = (("learns faster", reach_comparison), ("more robust", robust_comparison))
 NO_COMMON_SEEDS = "no seed in common"
 AT_ONE_LOOK_ONLY = f"at {stats.ALPHA:g} only"
@@ -156,6 +158,17 @@ class Question:
         return shown[0] if shown[0] == shown[1] else f"{shown[0]} to {shown[1]}"
 
 
+def _side(groups: list[Group], side: str | tuple[str, ...]) -> tuple[str, Group | None]:
+    """The method that stands on one side of a pair, and its group (`pick`); for a tuple of methods, the
+    first one with a group, else the last one (not run)."""
+    methods = (side,) if isinstance(side, str) else side
+    for method in methods:
+        group = pick(groups, method)
+        if group is not None:
+            return method, group
+    return methods[-1], None
+
+
 def _beyond_last(needed: int | None) -> float:
     """Orders seeds-needed counts with None (beyond the largest count computed) last."""
     return math.inf if needed is None else needed
@@ -172,8 +185,8 @@ def answer_questions(groups: list[Group], looks: tuple[int, int] | None = None) 
     questions = []
     for short, text, pairs in QUESTIONS:
         drafts, pending = [], []
-        for a, b in pairs:
-            ga, gb = pick(groups, a), pick(groups, b)
+        for sides in pairs:
+            (a, ga), (b, gb) = (_side(groups, side) for side in sides)
             for aspect, comparison in ASPECTS:
                 item = comparison(ga, gb, f"{a} {aspect} than {b}") if ga and gb else None
                 drafts.append((a, b, aspect, item, NO_COMMON_SEEDS if ga and gb else NOT_RUN))
