@@ -65,6 +65,9 @@ class SeedRun:
             self.selector = StartSelector(self.strategy, config.seed, max_episode_steps=envs.max_episode_steps)
         except ValueError as error:
             raise ConfigurationError(f"strategy: {error}") from None
+        extra = self.strategy.states[len(self.states):]  # start states a strategy adds (rfcl's p0 states)
+        if len(extra):  # start_weights.npz records them beside their probabilities
+            self.states = np.vstack([self.states, extra])
         self.envs, self.index = envs, index
         self.buffer = ReplayBuffer(config.sac.buffer_size, envs.single_observation_space.shape[0],
                                    envs.single_action_space.shape[0])

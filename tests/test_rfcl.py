@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import lava_bridge_mj
-from conftest import groups_in, makefile_commands, write_metric_runs
+from conftest import groups_in, makefile_commands, makefile_sweeps, write_metric_runs
 from test_runner import resume_from_mid_episode_checkpoint, tiny_config
 
 from lava_bridge_mj.agents import NO_STATE, RFCLReverseSS, RFCLSS, StartStateWrapper, StrategyContext
@@ -218,6 +218,9 @@ def test_an_rfcl_run_moves_its_pointers_and_resumes_exactly(rfcl_run, tmp_path):
     index, length = (np.array([int(r[k]) for r in log]) for k in ("start_index", "length"))
     limits = np.array([full.strategy.time_limit(i) for i in index])
     assert (length <= limits).all() and (length == limits).any()
+    weights = np.load(full_dir / "start_weights.npz")  # the 20 p0 states recorded after the demo states
+    np.testing.assert_array_equal(weights["states"], full.strategy.states)
+    assert weights["probabilities"].shape[1] == len(full.strategy.states) == len(full.strategy.demo_states) + 20
     resumed = resume_from_mid_episode_checkpoint(config, full_dir, full, tmp_path / "resumed")
     assert resumed.strategy.state_dict() == full.strategy.state_dict()
 
@@ -275,3 +278,17 @@ def test_with_rfcl_runs_the_second_question_reads_auxss_against_rfcl(tmp_path):
     with_rfcl = reverse_question(groups_in(tmp_path))
     assert {(a.a, a.b) for a in with_rfcl.answers} == {("auxss", "rfcl")}
     assert "auxss ahead" not in {a.verdict for a in with_rfcl.answers}
+
+
+def test_make_study_rfcl_trains_both_on_every_task_at_the_studys_budgets_seeds_and_options():
+    def cells(target, methods):
+        return {(task, method): {key: value for key, value in sweep.items() if key not in ("--methods", "--envs")}
+                for sweep in makefile_sweeps(target) for task in sweep["--envs"].split(",")
+                for method in sweep["--methods"].split(",") if method in methods}
+
+    study = cells("study", {"auxss"})
+    rfcl = cells("study-rfcl", {"rfcl", "rfcl_reverse"})
+    assert {task for task, _ in study} == set(lava_bridge_mj.SUITE)
+    assert rfcl == {(task, method): options for (task, _), options in study.items()
+                    for method in ("rfcl", "rfcl_reverse")}
+    assert makefile_commands("study-rfcl", "export") == makefile_commands("study", "export")

@@ -364,6 +364,8 @@ STRATEGY_PARAMS = {
     "uniform_ss": {},
     "goaldist_ss": dict(goal=(0.0, 0.0), temperature=0.1, temperature_growth=2.0),
     "reverse_ss": dict(episode_ids=[0, 1, 1], per_demo_buffer_size=1),
+    "rfcl_reverse": dict(episode_ids=[0, 1, 1], per_demo_buffer_size=1),
+    "rfcl": dict(episode_ids=[0, 1, 1], per_demo_buffer_size=1),
 }
 
 
@@ -379,7 +381,7 @@ def test_state_dict_round_trips_through_json(name):
     np.testing.assert_array_equal(restored.weights, trained.weights)
     rng_a, rng_b = np.random.default_rng(3), np.random.default_rng(3)
     assert [restored.sample(rng_a) for _ in range(50)] == [trained.sample(rng_b) for _ in range(50)]
-    if name in ("auxss", "goaldist_ss", "reverse_ss"):  # learning strategies: a fresh one really is different
+    if name in ("auxss", "goaldist_ss", "reverse_ss", "rfcl_reverse", "rfcl"):  # learning: a fresh one differs
         fresh = make_start_strategy(name, THREE_STATES, **STRATEGY_PARAMS[name])
         assert not np.allclose(fresh.probabilities, trained.probabilities)
 
