@@ -10,7 +10,7 @@ MKDOCS := NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs
 MESA_PACKAGES := libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 libosmesa6
 export MUJOCO_GL ?= egl
 
-.PHONY: run expert-video task-pictures test docs bench study study-extension report compress-results setup gl browser clean
+.PHONY: run expert-video task-pictures test docs bench study study-extension study-rfcl report compress-results setup gl browser clean
 
 # The main job: what the package is for, AuxSS against SAC from p0 on the same 5 seeds (80,000 steps, as
 # one sweep of two 5-seed jobs, one per core; 17 min on the idle 2-core machine, set-up included), then the report
@@ -102,6 +102,22 @@ study-extension: setup
 	$(STUDY_EXTENSION) --methods auxss,uniform_ss,omega_ss,goaldist_ss,reverse_ss --envs LavaBridge-v0 \
 	    --steps 100000 --out runs/study/LavaBridge-v0
 	$(STUDY_EXTENSION) --methods auxss,uniform_ss,omega_ss,goaldist_ss --envs LavaBridgeTwoCrossings-v0 --steps 300000 --out runs/study
+	$(BIN)/lava-bridge-bench export runs/study results/study
+
+# RFCL as published (rfcl: its reverse and forward curricula; rfcl_reverse: the reverse one alone) on every
+# task of the suite, at the study's budgets, seeds and sweep options; the study's second question then reads
+# AuxSS against rfcl on each task that has its runs (eval/study.py). 2 x 20 seeds x 700,000 steps = 28 M
+# seed-steps, about 9 hours at the study's 849 seed-steps/s: `lava-bridge-bench train --method rfcl
+# --env LavaBridge-v0 --seeds 0-9 --steps 2000 --eval-every 2000 --threads 1` used 33.2 CPU seconds, 602
+# seed-steps per CPU second (set-up and one evaluation round included; CPU time, as the machine was loaded),
+# and the same command with --method auxss 32.9, so rfcl costs what AuxSS does; two such jobs on the two
+# cores give at most 1,204 seed-steps/s, 6.5 hours.
+STUDY_RFCL := rfcl,rfcl_reverse
+study-rfcl: setup
+	$(STUDY_SWEEP) --methods $(STUDY_RFCL) --envs LavaBridgeDecoy-v0,LavaBridgeFarStart-v0,LavaBridgeNarrow-v0 \
+	    --steps 100000 --out runs/study
+	$(STUDY_SWEEP) --methods $(STUDY_RFCL) --envs LavaBridge-v0 --steps 100000 --out runs/study/LavaBridge-v0
+	$(STUDY_SWEEP) --methods $(STUDY_RFCL) --envs LavaBridgeTwoCrossings-v0 --steps 300000 --out runs/study
 	$(BIN)/lava-bridge-bench export runs/study results/study
 
 # docs/results.md's tables and figures, regenerated from the committed metrics in results/ (no training):
