@@ -214,7 +214,8 @@ def test_groups_are_picked_by_method_and_demo_set_and_described_by_the_registry(
     assert labels(aggregate.groups_of(groups, "auxss")) == auxss
     assert labels(aggregate.groups_of(groups, "auxss", 7500)) == ["auxss (7.5K)"]
     assert aggregate.groups_of(groups, "hysac", 7500) == [] and aggregate.groups_of(groups, "sac") == []
-    assert report_groups.START_STUDY == ("auxss", "omega_ss", "uniform_ss", "goaldist_ss", "reverse_ss")
+    assert report_groups.START_STUDY == ("auxss", "omega_ss", "uniform_ss", "goaldist_ss", "reverse_ss",
+                                         "rfcl_reverse", "rfcl")
     assert labels(report_groups.benchmark_groups(groups)) == [*auxss[:2], "hysac (0.5K)", "bc (0.5K)"]
     assert labels(report_groups.demo_size_groups(groups)) == auxss
     # bc learns offline (the registry says so): it is not tested against AuxSS
@@ -437,7 +438,8 @@ def test_report_skips_figures_whose_methods_are_absent(tmp_path):
     assert report.main([str(tmp_path), "--out", str(out), "--reps", "100"]) == 0
     text = (out / "report.md").read_text()
     assert "*Skipped: no method has runs with both 0.5K and 7.5K demo transitions.*" in text
-    assert "*Skipped: none of auxss, omega_ss, uniform_ss, goaldist_ss, reverse_ss has runs here.*" in text
+    assert ("*Skipped: none of auxss, omega_ss, uniform_ss, goaldist_ss, reverse_ss, rfcl_reverse, rfcl has runs "
+            "here.*") in text
     assert "Not in this directory: auxss, omega_ss" in text  # in the benchmark figure's note
     assert "No AuxSS run with start_weights.npz" in text
     assert (out / "benchmark.png").is_file() and (out / "maze.png").is_file()
