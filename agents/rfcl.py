@@ -200,6 +200,11 @@ class RFCLSS(_RFCLStages):
 
 
 def p0_states(env: Any, count: int) -> np.ndarray:
-    """The env's own start states for seeds 0..count-1: its observations after `reset(seed=s)` (RFCL's
-    fixed seeds; the env's state is its observation, as every start strategy assumes)."""
-    return np.array([np.asarray(env.reset(seed=seed)[0], dtype=np.float64) for seed in range(count)])
+    """The env's own start states for seeds 0..count-1 (RFCL's fixed seeds): after `reset(seed=s)`, the
+    full state an env wrapped in `ResetToState` reports as `info["state"]`, else the observation (a Lava
+    Bridge env's state is its observation)."""
+    states = []
+    for seed in range(count):
+        obs, info = env.reset(seed=seed)
+        states.append(np.asarray(info.get("state", obs), dtype=np.float64))
+    return np.array(states)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import lava_bridge_mj
-from conftest import groups_in, makefile_commands, makefile_sweeps, write_metric_runs
+from conftest import episode_rows, groups_in, makefile_commands, makefile_sweeps, write_metric_runs
 from test_runner import resume_from_mid_episode_checkpoint, tiny_config
 
 from lava_bridge_mj.agents import NO_STATE, RFCLReverseSS, RFCLSS, StartStateWrapper, StrategyContext
@@ -213,8 +213,7 @@ def rfcl_run(tmp_path_factory):
 def test_an_rfcl_run_moves_its_pointers_and_resumes_exactly(rfcl_run, tmp_path):
     config, full_dir, full = rfcl_run
     assert (full.strategy.start_steps < full.strategy.demo_lengths - 1).any(), "the curriculum never moved back"
-    with open(full_dir / "episodes.csv") as f:
-        log = list(csv.DictReader(f))
+    log = episode_rows(full_dir)
     index, length = (np.array([int(r[k]) for r in log]) for k in ("start_index", "length"))
     limits = np.array([full.strategy.time_limit(i) for i in index])
     assert (length <= limits).all() and (length == limits).any()
