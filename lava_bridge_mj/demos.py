@@ -14,7 +14,9 @@ reads it back.
 
 `load_demos(..., format="d4rl")` gives a set under D4RL's names (terminals, timeouts), and
 `to_minari(size, env_id)` (`python -m lava_bridge_mj demos --minari`) writes it as a local Minari
-dataset, one Minari episode per expert episode (needs the `minari` extra).
+dataset, one Minari episode per expert episode with each step's state in its infos (needs the
+`minari` extra); `load_minari_demos(dataset_id)` reads a local Minari dataset back as a demo set, which
+`RunConfig(demos="minari:ID")` and `--demos minari:ID` train from.
 """
 
 from __future__ import annotations
@@ -45,6 +47,8 @@ FORMATS = ("gymnasium", "d4rl")
 D4RL_NAMES = {"terminations": "terminals", "truncations": "timeouts"}
 """load_demos(format="d4rl") renames these fields, drops episode_ids and keeps the rest as they are."""
 MINARI_NAMESPACE = "lava_bridge"
+MINARI_PREFIX = "minari:"
+"""`demos="minari:ID"` (RunConfig, `--demos`) names the local Minari dataset ID instead of a demo file."""
 
 
 def demo_file(env_id: str, size: int) -> str:
@@ -343,13 +347,13 @@ def minari_env_spec(env_id: str) -> gymnasium.envs.registration.EnvSpec:
     return dataclasses.replace(spec, entry_point=f"{__name__}:task_env", kwargs={"env_id": env_id})
 
 
-def import_minari():
+def import_minari(use: str = "export"):
     """The minari module; ImportError saying how to install it when it or h5py (its HDF5 storage) is missing."""
     try:
         import h5py  # noqa: F401
         import minari
     except ImportError:
-        raise ImportError("Minari export needs the minari package with HDF5 support: "
+        raise ImportError(f"Minari {use} needs the minari package with HDF5 support: "
                           "pip install 'lava-bridge-mj[minari]'") from None
     return minari
 
@@ -358,7 +362,9 @@ def to_minari(size: int, env_id: str = DEFAULT_ENV_ID) -> minari.MinariDataset:
     """Write a task's shipped `size` set as the local Minari dataset `minari_dataset_id(size, env_id)`.
 
     One Minari episode per expert episode (split by `episode_ids`), its observations the episode's
-    observations followed by its last next_observation. The set's last episode is cut at the set
+    observations followed by its last next_observation, and the same rows as its `infos["state"]`: a
+    Lava Bridge state is its observation (x, y, vx, vy), what `reset(options={"state": s})` takes
+    and the start strategies start from. The set's last episode is cut at the set
     size and recorded as truncated, as the dataset's description says. The dataset goes under
     Minari's root (MINARI_DATASETS_PATH, else ~/.minari/datasets); ValueError, writing nothing, when a
     dataset with that id exists there. Returns the dataset, as `minari.load_dataset(id)` would.
@@ -376,14 +382,18 @@ def to_minari(size: int, env_id: str = DEFAULT_ENV_ID) -> minari.MinariDataset:
     episodes = []
     for episode in range(int(ids[-1]) + 1):
         rows = ids == episode
+        observations = np.concatenate([demos["observations"][rows], demos["next_observations"][rows][-1:]])
         episodes.append(EpisodeBuffer(
             id=episode,
             seed=SHIPPED_SEEDS[size] if episode == 0 else None,  # later episodes go on with its RNG
-            observations=np.concatenate([demos["observations"][rows], demos["next_observations"][rows][-1:]]),
+            observations=observations,
             actions=demos["actions"][rows],
             rewards=demos["rewards"][rows],
             terminations=demos["terminations"][rows],
-            truncations=demos["truncations"][rows]))
+            truncations=demos["truncations"][rows],
+            # one state per observation, as minari.DataCollector(ResetToState(env), record_infos=True)
+            # records info["state"] of the reset and of every step
+            infos={"state": observations}))
     spec = minari_env_spec(env_id)
     try:
         with warnings.catch_warnings():  # Minari asks for a code URL and an e-mail; a local export has neither
@@ -403,8 +413,99 @@ def minari_description(demos: dict[str, np.ndarray], size: int, env_id: str) -> 
     text = (f"Scripted-expert demonstrations on {env_id}: the {size}-transition set shipped with "
             f"lava-bridge-mj (lava_bridge_mj.load_demos({size}, env_id={env_id!r})), {len(lengths)} episodes "
             f"from p0 generated with seed {SHIPPED_SEEDS[size]}. Reward +1 at the goal, where an episode "
-            "terminates; 0 otherwise.")
+            "terminates; 0 otherwise. Each episode's infos['state'] holds the env's state at each observation "
+            "(on Lava Bridge the observation itself), which reset(options={'state': s}) restores.")
     if demos["truncations"][-1] and lengths[-1] < MAX_EPISODE_STEPS:
         text += (f" The last episode ({len(lengths) - 1}, {lengths[-1]} steps) is cut where the set reaches "
                  f"{size} transitions, not by the {MAX_EPISODE_STEPS}-step time limit, and is recorded as truncated.")
     return text
+
+
+def minari_export_command(dataset_id: str) -> str | None:
+    """The command that writes the local Minari dataset `dataset_id`, for one `to_minari` writes; else None."""
+    for env_id in TASKS:
+        for size in SHIPPED_SIZES:
+            if dataset_id == minari_dataset_id(size, env_id):
+                return f"python -m lava_bridge_mj demos --minari --size {size} --env {env_id}"
+    return None
+
+
+def _step_of(data, t: int):
+    """Step `t` of an episode's batched observations (an array, or a dict / tuple of them)."""
+    if isinstance(data, dict):
+        return {key: _step_of(value, t) for key, value in data.items()}
+    if isinstance(data, tuple):
+        return tuple(_step_of(value, t) for value in data)
+    return data[t]
+
+
+def load_minari_demos(dataset_id: str) -> dict[str, np.ndarray]:
+    """The local Minari dataset `dataset_id` as a demo set: the arrays `load_demos(path=...)` gives for
+    a file of `record_demos`, checked the same way.
+
+    Each Minari episode of T steps (T + 1 observations) gives T transitions, numbered by its place in
+    the dataset (`episode_ids`): observations and next_observations flattened in
+    `gymnasium.spaces.flatten` order (float64), actions (float32), rewards, terminations and
+    truncations as stored. `states`, the state before each transition, come from the episode's
+    `infos["state"]`, one row per observation: what `to_minari` writes and what
+    `minari.DataCollector(ResetToState(env), record_infos=True)` records (with a StepDataCallback that
+    keeps only info["state"] where the env's reset info has other keys than its step info, as
+    Gymnasium's MuJoCo envs' do: docs/demonstrations.md). `successes` come from
+    `infos["success"]` or `infos["is_success"]` after each step, where the episodes carry one; `env_id`
+    is the id of the dataset's env spec ("" without one).
+
+    Nothing is downloaded: ValueError naming the dataset and how to get it when it is not under
+    Minari's root (MINARI_DATASETS_PATH, else ~/.minari/datasets), and naming the episode when its
+    infos lack the states.
+    """
+    if not isinstance(dataset_id, str) or not dataset_id.strip():
+        raise ValueError(f"Minari dataset id must be a non-empty string such as {minari_dataset_id(500)!r}, "
+                         f"got {dataset_id!r}")
+    try:
+        minari = import_minari("datasets")
+    except ImportError as error:
+        raise ValueError(str(error)) from None
+    from minari.storage import get_dataset_path
+
+    source, command = f"Minari dataset {dataset_id}", minari_export_command(dataset_id)
+    try:
+        dataset = minari.load_dataset(dataset_id)  # download=False: a missing dataset raises
+    except FileNotFoundError:
+        how = (f"write it with `{command}`" if command else
+               f"download it (`minari download {dataset_id}`) or record it (minari.DataCollector)")
+        raise ValueError(f"{source} is not in {get_dataset_path()}: {how}") from None
+    except Exception as error:  # an id Minari cannot parse, damaged metadata or storage
+        raise ValueError(f"{source} cannot be read ({type(error).__name__}: {error})") from None
+    obs_space = dataset.observation_space
+    columns: dict[str, list] = {name: [] for name in (*FIELDS, "states", "successes")}
+    success_keys = set()
+    for index, episode in enumerate(dataset.iterate_episodes()):
+        steps = len(episode.rewards)
+        states = (episode.infos or {}).get("state")
+        if not isinstance(states, np.ndarray) or states.ndim != 2 or len(states) != steps + 1:
+            how = (f"delete it (minari.delete_dataset({dataset_id!r})) and write it again with `{command}`"
+                   if command else "record it with minari.DataCollector(lava_bridge_mj.ResetToState(env), "
+                                   "record_infos=True)")
+            raise ValueError(f"{source} carries no states (infos['state'], one per observation) in episode "
+                             f"{episode.id}, which the start strategies start from: {how}")
+        flat = np.stack([gymnasium.spaces.flatten(obs_space, _step_of(episode.observations, t))
+                         for t in range(steps + 1)]).astype(np.float64)
+        key = next((key for key in ("success", "is_success") if key in (episode.infos or {})), None)
+        success_keys.add(key)
+        for name, values in (("observations", flat[:-1]), ("next_observations", flat[1:]),
+                             ("actions", np.asarray(episode.actions).reshape(steps, -1)),
+                             ("rewards", episode.rewards), ("terminations", episode.terminations),
+                             ("truncations", episode.truncations), ("episode_ids", np.full(steps, index)),
+                             ("states", states[:-1]),
+                             ("successes", episode.infos[key][1:] if key else np.zeros(steps))):
+            columns[name].append(np.asarray(values))
+    if not columns["rewards"]:
+        raise ValueError(f"{source} holds no episodes")
+    dtypes = {**{name: dtype for name, (dtype, _) in FIELDS.items()}, **OPTIONAL_FIELDS}
+    demos = {name: np.concatenate(parts).astype(dtypes[name]) for name, parts in columns.items()}
+    if None in success_keys:  # successes only where every episode reports them
+        del demos["successes"]
+    demos["env_id"] = np.array("" if dataset.env_spec is None else dataset.env_spec.id)
+    check_demos(demos, source)
+    demos["env_id"] = str(demos["env_id"])
+    return demos
