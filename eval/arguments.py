@@ -16,6 +16,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from lava_bridge_mj.eval.atomic import nearest_existing
+from lava_bridge_mj.demos import MINARI_PREFIX
 from lava_bridge_mj.eval.config import MAX_SEED
 
 
@@ -153,12 +154,16 @@ def read_config_file(path: Path | None, parser: argparse.ArgumentParser) -> dict
 
 
 def demo_set(text: str) -> int | str:
-    """A demo set: a shipped set's size (500 or 7500), or the path of a demo file that exists."""
+    """A demo set: a shipped set's size (500 or 7500), the path of a demo file that exists, or
+    minari:DATASET_ID, a local Minari dataset (read, and refused when missing, with the configuration)."""
     if text.strip() in ("500", "7500"):
         return int(text)
+    if text.startswith(MINARI_PREFIX) and text[len(MINARI_PREFIX):].strip():
+        return text
     if not Path(text).expanduser().is_file():
-        raise argparse.ArgumentTypeError(f"demos must be 500 or 7500 (a shipped set) or the path of a demo file "
-                                         f"(lava_bridge_mj.save_demos); {text!r} is neither")
+        raise argparse.ArgumentTypeError(f"demos must be 500 or 7500 (a shipped set), {MINARI_PREFIX}DATASET_ID (a "
+                                         f"local Minari dataset) or the path of a demo file "
+                                         f"(lava_bridge_mj.save_demos); {text!r} is none of these")
     return text
 
 

@@ -74,10 +74,12 @@ def build_parser(prog: str = "lava-bridge-bench") -> argparse.ArgumentParser:
                              f"Hopper-v5), with --demos PATH (docs/any-env.md)")
     parser.add_argument("--steps", type=arguments.positive_int,
                         help=f"online env steps (default: {DEFAULTS.steps}; the paper's protocol: 300000)")
-    parser.add_argument("--demos", type=arguments.demo_set, metavar="500|7500|PATH",
+    parser.add_argument("--demos", type=arguments.demo_set, metavar="500|7500|PATH|minari:ID",
                         help=f"demo set the candidate start states come from: a shipped set, 500 or 7500 (default: "
-                             f"{DEFAULTS.demos}), or a demo file (lava_bridge_mj.save_demos), whose path and "
-                             f"content hash config.json records")
+                             f"{DEFAULTS.demos}), a demo file (lava_bridge_mj.save_demos), or minari:DATASET_ID, a "
+                             f"local Minari dataset with its states (python -m lava_bridge_mj demos --minari "
+                             f"writes the shipped sets; nothing is downloaded); config.json records its path or "
+                             f"id and content hash")
     parser.add_argument("--eval-every", type=arguments.positive_int,
                         help=f"evaluate, snapshot the policy and checkpoint every this many steps "
                              f"(default: {DEFAULTS.eval_every})")

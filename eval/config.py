@@ -18,6 +18,7 @@ from lava_bridge_mj.agents.checks import check_fits_in_memory, check_integer, ch
 from lava_bridge_mj.agents.configs import BCConfig, IQLConfig, JSRLConfig, SACConfig
 from lava_bridge_mj.agents.methods import METHODS as METHOD_SPECS
 from lava_bridge_mj.agents.strategy_registry import check_strategy_params, strategy_class
+from lava_bridge_mj.demos import MINARI_PREFIX, content_hash, load_minari_demos
 
 METHODS = tuple(METHOD_SPECS)
 """Training methods, by their CLI names (agents/methods.py describes each)."""
@@ -50,18 +51,20 @@ class RunConfig:
     env_id: str = lava_bridge_mj.ENV_ID
     """The task: an id of `lava_bridge_mj.TASKS` (its layout, its p0 and ood starts, and its shipped
     demos), or any other gymnasium id whose env `lava_bridge_mj.ResetToState` serves (Hopper-v5, ...),
-    which trains from a demo file recorded on it (`demos` a path; docs/any-env.md)."""
+    which trains from a demo file or Minari dataset recorded on it (docs/any-env.md)."""
     seed: int = 0
     """Seeds the networks, the env, the start strategy, the replay sampling and the demo subset."""
     steps: int = 50_000
     """Online environment steps (offline methods: gradient steps on the demo transitions)."""
     demos: int | str = 500
     """Which demo set the candidate start states (and HySAC's offline transitions) come from: a shipped
-    set (500 or 7500), or the path of a demo file (`lava_bridge_mj.save_demos`), kept as an absolute
-    path. An env that is not a Lava Bridge task starts from the file's full `states`."""
+    set (500 or 7500), the path of a demo file (`lava_bridge_mj.save_demos`), kept as an absolute
+    path, or "minari:ID", the local Minari dataset ID (`lava_bridge_mj.demos.load_minari_demos`; never
+    downloaded). An env that is not a Lava Bridge task starts from the set's full `states`."""
     demos_sha256: str | None = None
-    """The content hash (`content_hash`) of the demo file `demos` names, filled in from the file; kept
-    in config.json, so that a resume refuses a file that changed. None for a shipped set."""
+    """The content hash (`content_hash`) of the demo file or Minari dataset `demos` names (of its arrays
+    as loaded), filled in from it; kept in config.json, so that a resume refuses a set that changed.
+    None for a shipped set."""
     demo_subset: int = 150
     """Candidate start states: a seeded random subset of this many demo states (the paper's 150),
     the same set for every start strategy so that they differ only in how they sample it (reverse_ss
@@ -104,10 +107,11 @@ class RunConfig:
         self.hybrid_fraction = check_number("hybrid_fraction", self.hybrid_fraction, 0, 1, low_inclusive=True)
         if isinstance(self.demos, Path):
             self.demos = str(self.demos)
-        if isinstance(self.demos, str):
+        if isinstance(self.demos, str) and not self.demos.startswith(MINARI_PREFIX):
             self.demos = str(Path(self.demos).expanduser().resolve())
-        elif self.demos not in (500, 7500) or isinstance(self.demos, bool):
-            raise ValueError(f"demos must be 500 or 7500 (a shipped set) or the path of a demo file, got {self.demos!r}")
+        elif not isinstance(self.demos, str) and (self.demos not in (500, 7500) or isinstance(self.demos, bool)):
+            raise ValueError(f"demos must be 500 or 7500 (a shipped set), the path of a demo file or "
+                             f"'{MINARI_PREFIX}DATASET_ID' (a local Minari dataset), got {self.demos!r}")
         if not isinstance(self.env_id, str) or not self.env_id:
             raise ValueError(f"env_id must be a gymnasium id, got {self.env_id!r}")
         if not self.lava_bridge:
@@ -121,7 +125,7 @@ class RunConfig:
             if not isinstance(self.demos, str):
                 raise ValueError(f"env_id {self.env_id!r} is not a Lava Bridge task ({list(lava_bridge_mj.TASKS)}), "
                                  f"which ships no demos: give demos the path of a demo file recorded on it "
-                                 f"(lava_bridge_mj.record_demos)")
+                                 f"(lava_bridge_mj.record_demos) or '{MINARI_PREFIX}DATASET_ID'")
         if not isinstance(self.env, dict):
             raise ValueError(f"env must be a dict of the env's keyword arguments, got {self.env!r}")
         try:
@@ -129,12 +133,12 @@ class RunConfig:
         except (TypeError, ValueError) as error:
             raise ValueError(f"env: {error}") from None
         try:
-            if isinstance(self.demos, str) and self.demos_sha256 is None:  # a new run: read and check the file
-                from lava_bridge_mj.demos import content_hash
+            if isinstance(self.demos, str) and self.demos_sha256 is None:  # a new run: read and check the set
 
                 self.demos_sha256 = content_hash(self.load_demos(env))
             elif self.demos_sha256 is not None and not isinstance(self.demos, str):
-                raise ValueError(f"demos_sha256 goes with a demo file's path, not with the shipped set {self.demos}")
+                raise ValueError(f"demos_sha256 goes with a demo file or Minari dataset, not with the shipped set "
+                                 f"{self.demos}")
         finally:
             env.close()
 
@@ -143,16 +147,27 @@ class RunConfig:
         """True when `env_id` is a Lava Bridge task, False for any other gymnasium env."""
         return self.env_id in lava_bridge_mj.TASKS
 
-    def load_demos(self, env: Any = None) -> dict[str, Any]:
-        """The run's demo set (`load_demos`): the shipped set, or the file `demos`, checked against the
-        run's env (`env`: one of it, made here when not given) and its recorded `demos_sha256`;
-        ValueError naming what does not fit."""
-        from lava_bridge_mj.demos import content_hash
+    @property
+    def demos_source(self) -> str:
+        """What `demos` names, for messages: "demo file PATH", "Minari dataset ID" or "shipped set 500"."""
+        if not isinstance(self.demos, str):
+            return f"shipped set {self.demos}"
+        if self.demos.startswith(MINARI_PREFIX):
+            return f"Minari dataset {self.demos[len(MINARI_PREFIX):]}"
+        return f"demo file {self.demos}"
 
+    def load_demos(self, env: Any = None) -> dict[str, Any]:
+        """The run's demo set: the shipped set (`load_demos`), the file `demos` (`load_demos(path=...)`)
+        or the Minari dataset "minari:ID" (`load_minari_demos`), checked against the run's env (`env`:
+        one of it, made here when not given) and its recorded `demos_sha256`; ValueError naming what
+        does not fit."""
         if not isinstance(self.demos, str):
             return lava_bridge_mj.load_demos(self.demos, env_id=self.env_id)
-        demos = lava_bridge_mj.load_demos(path=self.demos)
-        source = f"demo file {self.demos}"
+        if self.demos.startswith(MINARI_PREFIX):
+            demos = load_minari_demos(self.demos[len(MINARI_PREFIX):])
+        else:
+            demos = lava_bridge_mj.load_demos(path=self.demos)
+        source = self.demos_source
         recorded_on = demos.get("env_id")
         if not self.lava_bridge:  # "module:Id" and Id name one env, whose spec's id record_demos records
             from lava_bridge_mj.state_vector import env_spec

@@ -162,9 +162,9 @@ def check_run_directory(config: Any, directory: Path, resume: bool, overwrite: b
         raise RunDirectoryError(f"{error}; not resuming into it") from None
     if (existing.get("demos") == config.demos and isinstance(config.demos, str)
             and existing.get("demos_sha256") != config.demos_sha256):
-        raise RunDirectoryError(f"demo file {config.demos} changed since the run in {directory} began (content hash "
+        raise RunDirectoryError(f"{config.demos_source} changed since the run in {directory} began (content hash "
                                 f"{config.demos_sha256}, config.json records {existing.get('demos_sha256')}); "
-                                "not resuming: restore that file, or train into another directory")
+                                "not resuming: restore it, or train into another directory")
     if not config.continues(existing):
         steps = ("the same --steps too: its GoalDist-SS temperature schedule is spread over its budget"
                  if config.budget_tied else "--steps may change")

@@ -34,13 +34,13 @@ def candidate_states(config: RunConfig) -> tuple[np.ndarray, np.ndarray | None]:
     field = "observations" if config.lava_bridge else "states"  # another env starts from its full states
     if METHODS[config.method].candidates == "demo_episodes":
         if not config.lava_bridge and "successes" not in demos:
-            raise ValueError(f"{config.method} needs demo episodes that end in success, but demo file {config.demos} "
+            raise ValueError(f"{config.method} needs demo episodes that end in success, but {config.demos_source} "
                              f"records no success ({config.env_id} reports neither info['success'] nor "
                              f"info['is_success'])")
         states, episode_ids = goal_reaching_demos(demos, field)
         if len(states) == 0:
             raise ValueError(f"{config.method} needs demo episodes that end in success, but none of the "
-                             f"{int(demos['episode_ids'][-1]) + 1} episodes of demo file {config.demos} does")
+                             f"{int(demos['episode_ids'][-1]) + 1} episodes of {config.demos_source} does")
         return states, episode_ids
     return lava_bridge_mj.candidate_states(demos[field], config.demo_subset, config.seed), None
 

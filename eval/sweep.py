@@ -51,6 +51,7 @@ import lava_bridge_mj
 from lava_bridge_mj.eval.arguments import (apply_settings, check_writable, config_source, demo_set, device, directory,
                                            parse_seeds, positive_int, read_config_file, setting, signal_of,
                                            stop_reason, stopping_on_signals, usable_cpus)
+from lava_bridge_mj.demos import MINARI_PREFIX
 from lava_bridge_mj.eval.config import METHODS, RunConfig, check_batch_fits
 from lava_bridge_mj.eval import sweep_ray
 from lava_bridge_mj.eval.run_files import lock_holder
@@ -130,13 +131,14 @@ def _error(message: str) -> int:
 
 
 def _demo_sets(text: str) -> list:
-    """An argparse type: comma-separated distinct demo sets (500, 7500 or demo file paths)."""
+    """An argparse type: comma-separated distinct demo sets (500, 7500, demo file paths or minari:IDs)."""
     values = [demo_set(part.strip()) for part in text.split(",")]
-    values = [str(Path(value).expanduser().resolve()) if isinstance(value, str) else value for value in values]
+    values = [str(Path(value).expanduser().resolve()) if isinstance(value, str) and not value.startswith(MINARI_PREFIX)
+              else value for value in values]
     names = [Path(value).stem if isinstance(value, str) else value for value in values]
     if len(set(names)) != len(names):
-        raise argparse.ArgumentTypeError(f"demo sets {text!r} name one set twice (a file's name without .npz "
-                                         f"names its runs' directory)")
+        raise argparse.ArgumentTypeError(f"demo sets {text!r} name one set twice (a file's name without .npz, a "
+                                         f"Minari dataset's last part, names its runs' directory)")
     return values
 
 
@@ -177,8 +179,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help=f"e.g. 0-24 or 0,3,5-7 (at most {MAX_SEEDS:,})")
     parser.add_argument("--demos", type=_demo_sets, default=[defaults.demos],
                         metavar="LIST", help=f"comma-separated demo sets: shipped ones, 500 and/or 7500 (default: "
-                                             f"{defaults.demos}), or demo files (runs from FILE.npz go to "
-                                             f"OUT/METHOD-dFILE)")
+                                             f"{defaults.demos}), demo files (runs from FILE.npz go to "
+                                             f"OUT/METHOD-dFILE) or local Minari datasets, minari:DATASET_ID "
+                                             f"(runs from minari:NS/ENV/NAME go to OUT/METHOD-dNAME)")
     parser.add_argument("--steps", type=positive_int, help=f"steps per run (default: {defaults.steps})")
     parser.add_argument("--eval-every", type=positive_int, help=f"default: {defaults.eval_every}")
     parser.add_argument("--eval-episodes", type=positive_int, help=f"default: {defaults.eval_episodes}")

@@ -47,7 +47,7 @@ class Job:
     def group(self) -> str:
         """The directory under the sweep's OUT that holds this method's runs on this demo set:
         METHOD-dDEMOS for LavaBridge-v0, ENV_ID/METHOD-dDEMOS for the suite's other tasks; DEMOS is a
-        demo file's name without its suffix."""
+        demo file's name without its suffix, or the last part of a Minari dataset's id (minari:NS/ENV/NAME)."""
         name = f"{self.method}-d{Path(self.demos).stem if isinstance(self.demos, str) else self.demos}"
         return name if self.env_id == lava_bridge_mj.ENV_ID else f"{self.env_id}/{name}"
 

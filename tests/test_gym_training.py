@@ -321,7 +321,7 @@ def test_the_cli_trains_a_gymnasium_id_from_a_demo_file(demo_files, tmp_path, ca
     assert cli_main(["report", str(tmp_path), "--out", str(tmp_path / "report")]) == 0
     with pytest.raises(SystemExit) as exit_:
         cli_main(["train", "--method", "auxss", "--env", PENDULUM, "--demos", str(tmp_path / "none.npz")])
-    assert exit_.value.code == 2 and "is neither" in capsys.readouterr().err
+    assert exit_.value.code == 2 and "is none of these" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exit_:
         cli_main([*argv[:-3], "--out", str(tmp_path / "video"), "--video"])
     assert exit_.value.code == 2 and f"{PENDULUM} is another env" in capsys.readouterr().err

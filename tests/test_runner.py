@@ -334,7 +334,7 @@ def test_resume_refuses_to_shorten_a_run_and_changes_nothing(finished_run, tmp_p
     (["--method", "auxss", "--seed", "99999999999999999999999"], "expected an integer seed in [0, 4294967295], got 99999999999999999999999"),
     (["--method", "auxss", "--seeds", "0-99999999999"], "in [0, 4294967295], got '0-99999999999'"),
     (["--method", "auxss", "--eval-episodes", "1000000"], "eval_episodes must be an integer in [1, 1000], got 1000000"),
-    (["--method", "auxss", "--demos", "1000"], "or the path of a demo file (lava_bridge_mj.save_demos); '1000' is neither"),
+    (["--method", "auxss", "--demos", "1000"], "or the path of a demo file (lava_bridge_mj.save_demos); '1000' is none of these"),
     (["--method", "auxss", "--eval-every", "-3"], "expected a positive integer, got -3"),
     ([], "the following arguments are required: --method"),
     (["--method", "auxss", "--seeds", "0-x"], "expected seeds like 0-24 or 0,3,5-7, got '0-x'"),

@@ -452,7 +452,7 @@ def test_a_ray_address_that_accepts_but_never_answers_is_given_up_on(tmp_path):
     ({"--methods": "sac,dqn"}, "unknown method 'dqn'"),
     ({"--methods": "sac,sac"}, "given twice"),
     ({"--seeds": "3-1"}, "expected a range of seeds low-high in [0, 4294967295], got '3-1'"),
-    ({"--demos": "500,600"}, "'600' is neither"),
+    ({"--demos": "500,600"}, "'600' is none of these"),
     ({"--workers": "0"}, "positive integer"),
     ({"--address": "127.0.0.1:6379"}, "--address needs --backend ray"),
     ({"--steps": "-5"}, "positive integer"),
