@@ -13,6 +13,8 @@ under the repository root, and a render function, which turns what the source re
   --out` writes) and the SAC-from-p0 runs in results/suite/sac_p0;
 - docs/speed.md and docs/sweeps.md: the speed tables, from the bench outputs in results/bench/*.txt, and
   the network-size table, from the AuxSS runs in results/netsize and results/calibration/auxss_lava0;
+- docs/index.md: why the main job trains 80,000 steps, from the runs in results/main_budget (`make
+  main-budget`): per budget, the seeds of AuxSS and of SAC from p0 that reached p0 success 0.8 by then;
 - results/INDEX.md: per folder of runs under results/, the methods, seeds, runs, commits, platform and
   training time, from each run's config.json, provenance.json and metrics.csv (and, for runs made before
   provenance.json was recorded, the commits results/code_before_provenance.json notes).
@@ -32,6 +34,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from lava_bridge_mj.eval import statistics
 from lava_bridge_mj.eval.arguments import format_seeds
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -44,7 +47,7 @@ INDEX = Path("results/INDEX.md")
 CODE_BEFORE_PROVENANCE = Path("results/code_before_provenance.json")
 """Folder -> the commits noted for its runs made before provenance.json was recorded."""
 DOCUMENTS = (Path("README.md"), Path("docs/results.md"), Path("docs/environment.md"), Path("docs/speed.md"),
-             Path("docs/sweeps.md"), INDEX)
+             Path("docs/sweeps.md"), Path("docs/index.md"), INDEX)
 START_DISTRIBUTIONS = ("auxss", "uniform_ss", "omega_ss", "goaldist_ss", "reverse_ss")
 _BLOCK = re.compile(r"(<!-- generated: (?P<name>[a-z-]+) -->\n).*?(<!-- end: (?P=name) -->)", re.S)
 
@@ -418,6 +421,48 @@ def netsize_table(groups: list[tuple[int, dict[int, list[tuple[int, float]]]]], 
     return lines
 
 
+MAIN_BUDGET = Path("results/main_budget")
+"""The main job's groups at evaluations every 5,000 steps (`make main-budget`)."""
+MAIN_BUDGET_GROUPS = (("auxss-d500", "AuxSS"), ("sac-d500", "SAC from p0"))
+MAIN_BUDGET_STEPS = (40_000, 50_000, 60_000, 70_000, 80_000)
+
+
+def main_budget_source(root: Path) -> dict[str, dict[int, list[tuple[int, float]]]]:
+    """Per group of MAIN_BUDGET_GROUPS, per seed: (step, success from p0) at every evaluation."""
+    groups = {}
+    for folder, _ in MAIN_BUDGET_GROUPS:
+        curves = {}
+        for run in sorted((root / MAIN_BUDGET / folder).glob("seed*")):
+            with (run / "metrics.csv").open() as f:
+                curves[int(run.name[4:])] = [(int(r["step"]), float(r["success_p0"])) for r in csv.DictReader(f)]
+        if not curves:
+            raise ValueError(f"{MAIN_BUDGET / folder} holds no runs (seedN folders)")
+        groups[folder] = curves
+    return groups
+
+
+def main_budget_table(groups: dict[str, dict[int, list[tuple[int, float]]]], threshold: float = 0.8) -> list[str]:
+    """Each seed's first evaluation with success from p0 >= `threshold`, then per budget of
+    MAIN_BUDGET_STEPS how many seeds of each group had reached it, and Fisher's exact p of the difference."""
+    firsts = {folder: {seed: next((step for step, success in curve if success >= threshold), None)
+                       for seed, curve in curves.items()} for folder, curves in groups.items()}
+    (folder_a, name_a), (folder_b, name_b) = MAIN_BUDGET_GROUPS
+    lines = ["| | " + " | ".join(f"seed {s}" for s in sorted(firsts[folder_a])) + " |",
+             "|---|" + "---:|" * len(firsts[folder_a])]
+    for folder, name in MAIN_BUDGET_GROUPS:
+        ends = {seed: curve[-1][0] for seed, curve in groups[folder].items()}
+        lines.append(f"| {name}: first step at p0 success >= {threshold} | " + " | ".join(
+            f"{first:,}" if first is not None else f"not by {ends[seed]:,}"
+            for seed, first in sorted(firsts[folder].items())) + " |")
+    lines += ["", f"| budget | {name_a}: seeds reached | {name_b}: seeds reached | Fisher's exact p |", "|---:|---:|---:|---:|"]
+    for budget in MAIN_BUDGET_STEPS:
+        counts = [(sum(first is not None and first <= budget for first in firsts[folder].values()), len(firsts[folder]))
+                  for folder, _ in MAIN_BUDGET_GROUPS]
+        (a, n_a), (b, n_b) = counts
+        lines.append(f"| {budget:,} | {a} of {n_a} | {b} of {n_b} | {statistics.fisher_p(a, n_a, b, n_b):.3g} |")
+    return lines
+
+
 # --- the results index (results/*/.../config.json, provenance.json, metrics.csv) ----------------------------
 
 @dataclass
@@ -521,6 +566,7 @@ PARTS: dict[str, Part] = {
     "speed-threads": Part(bench_text("threads_under_load.txt"), threads_table),
     "speed-netsize": Part(netsize_source, netsize_table),
     "sweep-scaling": Part(bench_text("sweep_scaling.txt"), sweep_scaling_table),
+    "main-budget": Part(main_budget_source, main_budget_table),
     "results-index": Part(results_source, results_index)}
 
 

@@ -276,3 +276,31 @@ def test_the_network_size_table_counts_seeds_reaching_the_threshold_within_the_s
         "| hidden units | seed 1 | seed 2 | reached by 20k |", "|---:|---:|---:|---:|",
         "| 64 | 30k | 10k | 1 of 2 |",
         "| 256 | not by 20k (0.50) | not by 20k | 0 of 2 |"]
+
+
+def test_the_main_budget_table_counts_seeds_reaching_08_by_each_budget(tmp_path):
+    # AuxSS seeds first reach 0.8 at 50k, 70k and never (its best 0.78); SAC never
+    auxss = [0.0] * 4 + [0.8, 0.9, 1.0, 1.0]
+    later = [0.0] * 6 + [0.85, 0.9]
+    never = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.78]
+    for folder, curves in (("auxss-d500", (auxss, later, never)), ("sac-d500", ([0.0] * 8,) * 3)):
+        for seed, successes in enumerate(curves):
+            run = tmp_path / doc_tables.MAIN_BUDGET / folder / f"seed{seed}"
+            run.mkdir(parents=True)
+            with (run / "metrics.csv").open("w", newline="") as f:
+                writer = csv.writer(f)
+                writer.writerow(["step", "success_p0"])
+                writer.writerows([[10_000 * (i + 1), s] for i, s in enumerate(successes)])
+    table = doc_tables.main_budget_table(doc_tables.main_budget_source(tmp_path))
+    assert table == [
+        "| | seed 0 | seed 1 | seed 2 |", "|---|---:|---:|---:|",
+        "| AuxSS: first step at p0 success >= 0.8 | 50,000 | 70,000 | not by 80,000 |",
+        "| SAC from p0: first step at p0 success >= 0.8 | not by 80,000 | not by 80,000 | not by 80,000 |",
+        "", "| budget | AuxSS: seeds reached | SAC from p0: seeds reached | Fisher's exact p |", "|---:|---:|---:|---:|",
+        "| 40,000 | 0 of 3 | 0 of 3 | 1 |", "| 50,000 | 1 of 3 | 0 of 3 | 1 |", "| 60,000 | 1 of 3 | 0 of 3 | 1 |",
+        "| 70,000 | 2 of 3 | 0 of 3 | 0.4 |", "| 80,000 | 2 of 3 | 0 of 3 | 0.4 |"]
+
+
+def test_the_main_budget_source_names_a_folder_without_runs(tmp_path):
+    with pytest.raises(ValueError, match="auxss-d500 holds no runs"):
+        doc_tables.main_budget_source(tmp_path)
