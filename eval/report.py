@@ -5,11 +5,13 @@
 
 Runs are found under DIR at any depth by their config.json and metrics.csv and grouped by configuration
 (eval/aggregate.py: task, method and demo set, plus any other setting that differs). OUT receives, each
-as PNG and PDF (named TASK_NAME, with one part of report.md per task, when DIR holds runs of several tasks):
+as a PNG (and a PDF with --pdf; named TASK_NAME, with one part of report.md per task, when DIR holds runs of
+several tasks):
     benchmark          training return and success from p0 and from ood versus steps, every method
                        (its 0.5K-demo runs where it has them): the paper's benchmark comparison
     demo_size          the same for the methods that have both 0.5K and 7.5K runs (solid and dashed)
-    start_distributions  AuxSS, Omega-SS, U-SS and GoalDist-SS: the start-distribution study
+    start_distributions  AuxSS, Omega-SS, U-SS and GoalDist-SS: the start-distribution study (not drawn when
+                       its groups are the benchmark's, which then shows it already)
     maze               the maze (walls, lava, goal, p0 blobs, ood spots, the candidate demo states) and
                        an AuxSS run's start-state probabilities on those states at a few evaluations
     maze_reverse_ss    the same for a reverse_ss run (RFCL's reverse curriculum), when DIR has one: its
@@ -79,9 +81,10 @@ WEIGHT_SNAPSHOTS = 4
 def build_report(roots: Path | Sequence[Path], out: Path, threshold: float = THRESHOLD, reps: int = BOOTSTRAP_REPS,
                  runs: list[RunRecord] | None = None, budget: int | None = None,
                  seeds: list[int] | None = None, all_pairs: bool = False,
-                 looks: tuple[int, int] | None = None, task_seeds: dict[str, list[int]] | None = None) -> Path:
-    """Write every figure and report.md for the runs under `roots` (one directory or several; or
-    `runs`, found there already) into `out`; returns report.md's path. `budget`, `seeds` and `task_seeds`
+                 looks: tuple[int, int] | None = None, task_seeds: dict[str, list[int]] | None = None,
+                 pdf: bool = False) -> Path:
+    """Write every figure (PNG, and PDF with `pdf`) and report.md for the runs under `roots` (one directory
+    or several; or `runs`, found there already) into `out`; returns report.md's path. `budget`, `seeds` and `task_seeds`
     select evaluations and runs as `find_runs` does; `all_pairs` tests every pair of a task's groups in the
     pairwise table instead of `comparison_pairs`'s; `looks` (first, second seeds per group) checks the
     study's verdicts at the two-look level too (eval/study.py). ValueError when a root holds no such run or a run's
@@ -98,7 +101,7 @@ def build_report(roots: Path | Sequence[Path], out: Path, threshold: float = THR
     staging = Path(tempfile.mkdtemp(prefix=".report-", dir=out))
     try:
         warnings = _write_report(staging, roots, groups, curves, threshold, reps, budget, seeds, all_pairs, looks,
-                                 task_seeds)
+                                 task_seeds, pdf)
         for warning in warnings:
             print(f"lava-bridge-bench report: warning: {warning}", file=sys.stderr)
         _publish(staging, out)
@@ -128,7 +131,8 @@ def _publish(staging: Path, out: Path) -> None:
 
 def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dict, threshold: float, reps: int,
                   budget: int | None, seeds: list[int] | None, all_pairs: bool = False,
-                  looks: tuple[int, int] | None = None, task_seeds: dict[str, list[int]] | None = None) -> list[str]:
+                  looks: tuple[int, int] | None = None, task_seeds: dict[str, list[int]] | None = None,
+                  pdf: bool = False) -> list[str]:
     """Every figure and report.md into `out`; returns the warnings. Runs of one task make the report's
     sections; runs of several tasks make one part per task (figures named TASK_NAME), since methods are
     compared within a task only, after a table of every task's answers to the study's questions."""
@@ -165,12 +169,12 @@ def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dic
         mine = [g for g in groups if g.task == task]
         if len(tasks) == 1:
             lines.extend(_task_sections(mine, answers[task], curves, threshold, reps, where, out, warnings, "##", "",
-                                        all_pairs))
+                                        all_pairs, pdf))
         else:
             lines.extend(["", f"## {task}", "",
                           f"{counted(sum(len(g.runs) for g in mine), 'run')} in {counted(len(mine), 'group')}."])
             lines.extend(_task_sections(mine, answers[task], curves, threshold, reps, where, out, warnings, "###",
-                                        f"{task}_", all_pairs))
+                                        f"{task}_", all_pairs, pdf))
     atomic_write_text(out / "report.md", "\n".join(lines) + "\n")
     return warnings
 
@@ -181,9 +185,9 @@ names in its text: AuxSS always (the paper's figure), RFCL's reverse curriculum 
 
 
 def _maze_section(groups: list[Group], threshold: float, where: str, out: Path, warnings: list[str],
-                  name: str = "maze", method: str = "auxss") -> list[str]:
-    """Draw NAME.png/pdf: the maze and the start-state probabilities of a `method` run; the report's
-    paragraph about it. A start_weights.npz that cannot be read is passed over, with a line in
+                  name: str = "maze", method: str = "auxss", pdf: bool = False) -> list[str]:
+    """Draw NAME.png (and NAME.pdf with `pdf`): the maze and the start-state probabilities of a `method`
+    run; the report's paragraph about it. A start_weights.npz that cannot be read is passed over, with a line in
     `warnings`."""
     weights: dict[Path, tuple | None] = {}
     strategy = MAZE_STRATEGIES[method]
@@ -223,10 +227,15 @@ def _maze_section(groups: list[Group], threshold: float, where: str, out: Path, 
         text = (f"The maze{with_states}. *No {strategy} run with start_weights.npz in {where}: the start weights "
                 f"are not shown.*")
     layout = maze_layout(source or groups[0].runs[0])
-    save_figure(maze_figure(layout, states, snapshots, caption), out, name)
+    save_figure(maze_figure(layout, states, snapshots, caption), out, name, pdf)
     notes = [f"*Skipped: {warning}*" for warning in warnings]
-    return [text, *(["", *notes] if notes else []), "", f"![The maze and {strategy} start weights]({name}.png)", "",
-            f"[PDF]({name}.pdf)"]
+    return [text, *(["", *notes] if notes else []), "", f"![The maze and {strategy} start weights]({name}.png)",
+            *_pdf_link(name, pdf)]
+
+
+def _pdf_link(name: str, pdf: bool) -> list[str]:
+    """report.md's link to figure `name`'s PDF, when the report writes one."""
+    return ["", f"[PDF]({name}.pdf)"] if pdf else []
 
 
 def _curriculum_lines(groups: list[Group], warnings: list[str]) -> list[str]:
@@ -288,12 +297,13 @@ def _stall_row(label: str, stalls: dict[int, CurriculumStall]) -> str:
 
 def _task_sections(groups: list[Group], questions: list[Question], curves: dict, threshold: float, reps: int,
                    where: str, out: Path, warnings: list[str], heading: str, prefix: str,
-                   all_pairs: bool = False) -> list[str]:
+                   all_pairs: bool = False, pdf: bool = False) -> list[str]:
     """The figures and tables of the groups of one task, with its answers to the study's questions,
-    under `heading`-level titles, figure files named `prefix` + name."""
+    under `heading`-level titles, figure files named `prefix` + name (PDFs too with `pdf`)."""
     from lava_bridge_mj.eval.config import METHODS
 
     lines: list[str] = []
+    drawn: dict[str, list[Group]] = {}  # figure title -> its groups
 
     def add_figure(name: str, title: str, chosen: list[Group], about: str, skipped: str,
                    wanted: tuple[str, ...] = ()) -> None:
@@ -301,12 +311,19 @@ def _task_sections(groups: list[Group], questions: list[Question], curves: dict,
         if not chosen:
             lines.append(f"*Skipped: {skipped}*")
             return
-        save_figure(curves_figure(chosen, curves, title), out, prefix + name)
         lines.append(about)
         missing = [m for m in wanted if m not in {g.method for g in chosen}]
         if missing:
             lines.append(f"Not in this directory: {', '.join(missing)}.")
-        lines.extend(["", f"![{title}]({prefix}{name}.png)", "", f"[PDF]({prefix}{name}.pdf)"])
+        # the same groups in the same order draw the same curves, legend and colours: only the title would differ
+        same = next((earlier for earlier, shown in drawn.items()
+                     if len(shown) == len(chosen) and all(a is b for a, b in zip(shown, chosen))), None)
+        if same is not None:
+            lines.extend(["", f"The same groups as the {same.lower()} above: its figure shows them."])
+            return
+        drawn[title] = chosen
+        save_figure(curves_figure(chosen, curves, title), out, prefix + name, pdf)
+        lines.extend(["", f"![{title}]({prefix}{name}.png)", *_pdf_link(prefix + name, pdf)])
 
     add_figure("benchmark", "Benchmark comparison", benchmark_groups(groups),
                "Every method, with 0.5K demo transitions where it has runs with them.", "no runs.", METHODS)
@@ -320,12 +337,13 @@ def _task_sections(groups: list[Group], questions: list[Question], curves: dict,
     maze = groups[0].task in lava_bridge_mj.TASKS  # another env has no maze to draw its start states on
     if maze:
         lines.extend(["", f"{heading} The maze and AuxSS's start weights", "",
-                      *_maze_section(groups, threshold, where, out, warnings, prefix + "maze")])
+                      *_maze_section(groups, threshold, where, out, warnings, prefix + "maze", pdf=pdf)])
     curricula = benchmark_groups(groups, ("reverse_ss",))
     if maze and any((run.path / "start_weights.npz").is_file() for g in curricula for run in g.runs):
         skipped: list[str] = []  # its own, so the AuxSS section's notes are not repeated under it
         lines.extend(["", f"{heading} The reverse curriculum's start states", "",
-                      *_maze_section(groups, threshold, where, out, skipped, prefix + "maze_reverse_ss", "reverse_ss"),
+                      *_maze_section(groups, threshold, where, out, skipped, prefix + "maze_reverse_ss", "reverse_ss",
+                                     pdf),
                       "", *_curriculum_lines(groups, skipped)])
         warnings.extend(skipped)
     lines.extend(["", f"{heading} At the last evaluation", "", *last_evaluation_table(groups, curves)])
@@ -344,7 +362,7 @@ def _task_sections(groups: list[Group], questions: list[Question], curves: dict,
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="lava-bridge-bench report",
-        description="Regenerate the paper's figures (PNG and PDF) and a Markdown report with IQM/CI tables "
+        description="Regenerate the paper's figures (PNG, and PDF with --pdf) and a Markdown report with IQM/CI tables "
                     "from a directory of runs (found at any depth by config.json and metrics.csv).")
     parser.add_argument("dirs", metavar="DIR", type=Path, nargs="+",
                         help="directory holding runs, e.g. a sweep's output; several are reported together")
@@ -371,6 +389,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="the seeds per group at which a study reads its comparisons, first and after a seed "
                              "extension, e.g. 20,49: each verdict is also checked at Pocock's two-look level "
                              "(default: one look)")
+    parser.add_argument("--pdf", action="store_true",
+                        help="also write each figure as a PDF, for print (default: PNG only)")
     args = parser.parse_args(argv)
     if not 1 <= args.reps <= MAX_REPS:
         parser.error(f"--reps must be in 1-{MAX_REPS:,}, got {args.reps}")
@@ -398,7 +418,7 @@ def main(argv: list[str] | None = None) -> int:
     previous = signal.signal(signal.SIGTERM, _interrupt) if _in_main_thread() else None
     try:
         report = build_report(args.dirs, out, args.threshold, args.reps, runs, args.budget, args.seeds,
-                              args.all_pairs, args.looks, task_seeds)
+                              args.all_pairs, args.looks, task_seeds, args.pdf)
     except ValueError as error:  # a run's files cannot be used (its config makes no maze, ...)
         return _error(f"{error}; {unchanged}")
     except OSError as error:  # a full disk, a directory that turned read-only, ...

@@ -1,13 +1,14 @@
 """The report's figures (matplotlib, files only): IQM curves with their CI bands, and the maze with
 AuxSS's start-state probabilities painted on the candidate demo states.
 
-`curves_figure` and `maze_figure` return a figure; `save_figure` writes it as PNG and PDF, each
-atomically and with no date in it, so the same data gives the same bytes.
+`curves_figure` and `maze_figure` return a figure; `save_figure` writes it as a palette PNG (and a PDF
+when asked), each atomically and with no date in it, so the same data gives the same bytes.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import io
 import math
 from pathlib import Path
 
@@ -175,17 +176,42 @@ def maze_figure(layout, states: np.ndarray | None, weights: list[tuple[float, fl
     return fig
 
 
-def save_figure(fig, out: Path, name: str) -> list[Path]:
-    """`name`.png and `name`.pdf in `out`, each written atomically."""
+DPI = 130
+"""Pixels per inch of the PNG figures."""
+PALETTE_COLOURS = 256
+"""Most colours of a PNG figure: its lines, bands and their antialiased edges fit, in about a quarter of full
+colour's bytes."""
+
+
+def png_bytes(fig) -> bytes:
+    """The figure as a palette PNG (at most `PALETTE_COLOURS` colours) with no text chunk in it: the same
+    figure gives the same bytes."""
+    from PIL import Image
+
+    rendered = io.BytesIO()
+    fig.savefig(rendered, format="png", dpi=DPI)
+    rendered.seek(0)
+    # maximum coverage keeps every line's colour within a few levels of its own, and the quantizer maps each
+    # pixel to its nearest palette entry without dithering, so lines stay crisp; Pillow writes no text chunk
+    image = Image.open(rendered).convert("RGB").quantize(PALETTE_COLOURS, method=Image.Quantize.MAXCOVERAGE)
+    written = io.BytesIO()
+    image.save(written, format="PNG", optimize=True)
+    return written.getvalue()
+
+
+def save_figure(fig, out: Path, name: str, pdf: bool = False) -> list[Path]:
+    """`name`.png in `out` (`png_bytes`) and, with `pdf`, `name`.pdf, each written atomically."""
     from lava_bridge_mj.eval.atomic import atomic_write
 
-    paths = []
-    # no creation date in the PDF: the same data must give the same bytes, or every `make report`
-    # shows every figure as changed
-    metadata = {"png": None, "pdf": {"CreationDate": None}}
-    for kind in ("png", "pdf"):
-        path = out / f"{name}.{kind}"
-        atomic_write(path, lambda f: fig.savefig(f, format=kind, dpi=130, metadata=metadata[kind]))
+    png = out / f"{name}.png"
+    data = png_bytes(fig)
+    atomic_write(png, lambda f: f.write(data))
+    paths = [png]
+    if pdf:
+        # no creation date in the PDF: the same data must give the same bytes, or every `make report`
+        # shows every figure as changed
+        path = out / f"{name}.pdf"
+        atomic_write(path, lambda f: fig.savefig(f, format="pdf", dpi=DPI, metadata={"CreationDate": None}))
         paths.append(path)
     _pyplot().close(fig)
     return paths

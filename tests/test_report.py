@@ -328,8 +328,8 @@ def test_report_writes_every_figure_and_the_markdown(tmp_path, capsys):
     assert report.main([str(sweep), "--reps", "200"]) == 0
     out = sweep / "report"
     assert f"wrote {out / 'report.md'}" in capsys.readouterr().out
+    assert not list(out.glob("*.pdf")) and "[PDF]" not in (out / "report.md").read_text()  # only with --pdf
     for name in FIGURES:
-        assert (out / f"{name}.pdf").stat().st_size > 5_000
         image = imageio.imread(out / f"{name}.png")
         assert image.shape[0] > 300 and image.shape[1] > 900
         assert image[..., :3].std() > 10, f"{name}.png is blank"
@@ -364,10 +364,63 @@ def test_report_figures_are_byte_identical_when_regenerated(tmp_path):
         write_run(tmp_path / "runs" / f"seed{seed}", seed=seed, p0=[0.0, 0.5, 0.9], weights=True)
     outputs = []
     for out in ("a", "b"):
-        assert report.main([str(tmp_path / "runs"), "--reps", "50", "--out", str(tmp_path / out)]) == 0
+        assert report.main([str(tmp_path / "runs"), "--reps", "50", "--pdf", "--out", str(tmp_path / out)]) == 0
         outputs.append({p.name: p.read_bytes() for p in (tmp_path / out).iterdir()})
-    assert any(name.endswith(".pdf") for name in outputs[0])
+    assert sorted(outputs[0]) == ["benchmark.pdf", "benchmark.png", "maze.pdf", "maze.png", "report.md"]
     assert outputs[0] == outputs[1]
+    text = (tmp_path / "a" / "report.md").read_text()
+    assert "[PDF](benchmark.pdf)" in text and "[PDF](maze.pdf)" in text  # linked beside their PNGs
+    assert outputs[0]["benchmark.pdf"].startswith(b"%PDF") and b"CreationDate" not in outputs[0]["benchmark.pdf"]
+
+
+def png_chunks(data: bytes) -> list[bytes]:
+    """The chunk types of a PNG file, in order."""
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    types, at = [], 8
+    while at < len(data):
+        length = int.from_bytes(data[at:at + 4], "big")
+        types.append(data[at + 4:at + 8])
+        at += 12 + length  # length, type, data, CRC
+    return types
+
+
+def test_a_figure_is_written_as_a_palette_png_with_its_colours_and_no_text(tmp_path):
+    from PIL import Image
+
+    plt = report_figures._pyplot()
+
+    def figure():
+        fig, ax = plt.subplots(figsize=(4, 3))
+        x = np.linspace(0, 1, 50)
+        ax.plot(x, x**2, color="#1f77b4", linewidth=3)
+        ax.fill_between(x, x**2 - 0.1, x**2 + 0.1, color="#ff7f0e", alpha=0.18, linewidth=0)
+        ax.set_title("a figure")
+        return fig
+
+    for out in ("a", "b"):
+        (tmp_path / out).mkdir()
+        assert report_figures.save_figure(figure(), tmp_path / out, "fig") == [tmp_path / out / "fig.png"]  # no PDF
+    data = (tmp_path / "a" / "fig.png").read_bytes()
+    assert data == (tmp_path / "b" / "fig.png").read_bytes()  # the same figure, the same bytes
+    assert png_chunks(data) == [b"IHDR", b"PLTE", b"IDAT", b"IEND"]  # no tEXt, zTXt, iTXt or tIME chunk
+    image = Image.open(tmp_path / "a" / "fig.png")
+    assert image.mode == "P" and image.size == (4 * report_figures.DPI, 3 * report_figures.DPI)
+    assert len(image.getcolors()) <= report_figures.PALETTE_COLOURS
+    colours = np.asarray(image.convert("RGB")).reshape(-1, 3).astype(int)
+    # the line's blue, the band's orange at 18% on white and the white background keep their colours, and the
+    # figure is not dithered: each of them fills a block of pixels with one exact colour
+    band = np.round(255 + 0.18 * (np.array([255, 127, 14]) - 255))
+    for colour in ([31, 119, 180], band, [255, 255, 255]):
+        distance = np.abs(colours - colour).max(axis=1)
+        assert distance.min() <= 4, colour
+        assert (distance == distance.min()).sum() > 200, colour
+
+
+def test_pdf_writes_each_figure_as_a_pdf_too(tmp_path):
+    plt = report_figures._pyplot()
+    fig, _ = plt.subplots()
+    assert [p.name for p in report_figures.save_figure(fig, tmp_path, "fig", pdf=True)] == ["fig.png", "fig.pdf"]
+    assert (tmp_path / "fig.pdf").read_bytes().startswith(b"%PDF")
 
 
 def test_report_budget_and_seeds_select_evaluations_and_runs(tmp_path, capsys):
@@ -585,7 +638,7 @@ def fail_on_write(monkeypatch, name, error):
     monkeypatch.setattr(atomic, "atomic_write", write)
 
 
-@pytest.mark.parametrize("name", ["benchmark.png", "start_distributions.pdf", "report.md"])  # first, middle, last
+@pytest.mark.parametrize("name", ["benchmark.png", "maze.png", "report.md"])  # first, middle, last
 def test_a_full_disk_leaves_the_previous_report_as_it_was(tmp_path, capsys, monkeypatch, name):
     import errno
 
@@ -717,8 +770,12 @@ def test_runs_of_several_tasks_are_grouped_and_compared_within_their_task(tmp_pa
     assert re.search(r"\| auxss \(0\.5K\) \| [0-9,]+ \| 2 of 2 \[", v0)
     assert "The paper's findings" in v0 and "The paper's findings" not in narrow
     for task in ("LavaBridge-v0", "LavaBridgeNarrow-v0"):
-        for name in ("benchmark", "start_distributions", "maze"):
+        for name in ("benchmark", "maze"):
             assert (out / f"{task}_{name}.png").is_file() and f"({task}_{name}.png)" in text
+        # the start-distribution study has the benchmark's groups (auxss and uniform_ss): not drawn twice
+        assert not (out / f"{task}_start_distributions.png").exists() and "start_distributions" not in text
+    assert v0.count("The same groups as the benchmark comparison above: its figure shows them.") == 1
+    assert narrow.count("The same groups as the benchmark comparison above: its figure shows them.") == 1
 
 
 def test_the_maze_figure_of_a_task_draws_its_own_layout(tmp_path):
