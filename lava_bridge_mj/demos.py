@@ -4,8 +4,11 @@ Every task of the suite (`lava_bridge_mj.TASKS`) ships two sets, 500 and 7,500 t
 scripted-expert episodes from p0, concatenated until the size is reached; the last episode is cut
 there and marked truncated. LavaBridge-v0's are `assets/demos_500.npz` and `assets/demos_7500.npz`
 (its 500 set is 3 trajectories, as in the paper), another task's `assets/demos_<env id>_<size>.npz`.
+Each external task (`lava_bridge_mj.external.EXTERNAL_TASKS`) ships the same two sizes, its expert's
+episodes from p0 recorded by `record_demos` on `make_task_env(env_id)` (`generate_task_demos`).
 `assets/demos.json` records, per task and size, the file, seed, episode count and a SHA-256 of the
-arrays; `python -m lava_bridge_mj demos --check` regenerates every set and compares them bit for bit.
+arrays; `python -m lava_bridge_mj demos --check` regenerates every set and compares them bit for bit
+(`--env ID`: one task's).
 
 `record_demos(env, policy, n_transitions, seed)` records a set the same way on any env that
 `ResetToState` serves, with any policy, adding each transition's full state (`states`) and the env's
@@ -34,6 +37,7 @@ import gymnasium
 import numpy as np
 
 from lava_bridge_mj.expert import ScriptedExpert
+from lava_bridge_mj.external import EXTERNAL_TASKS, make_task_env
 from lava_bridge_mj.lava_bridge import MAX_EPISODE_STEPS, LavaBridgeEnv
 from lava_bridge_mj.tasks import DEFAULT_ENV_ID, TASKS, task_layout
 
@@ -103,7 +107,9 @@ def record_demos(env: gymnasium.Env, policy, n_transitions: int, seed: int) -> d
 
     `env` is any env that `lava_bridge_mj.ResetToState` serves (it is wrapped if it is not already);
     `policy` maps the env's observation to an action: a callable, or a model with
-    `.predict(obs, deterministic=True)` (stable-baselines3's). Returns the demo format of `load_demos`
+    `.predict(obs, deterministic=True)` (stable-baselines3's); a callable that also has a method
+    `reset(observation, info)` (an external task's expert, `lava_bridge_mj.external.Expert`) is told
+    of every reset. Returns the demo format of `load_demos`
     (observations flattened in `gymnasium.spaces.flatten` order, float64; actions as the env took
     them, float32) plus `states`, the full state before each transition (ResetToState's
     `info["state"]`), `env_id`, the env's gymnasium id (its spec's; "" for an env made without one),
@@ -116,9 +122,12 @@ def record_demos(env: gymnasium.Env, policy, n_transitions: int, seed: int) -> d
         raise ValueError(f"n_transitions must be a positive integer, got {n_transitions!r}")
     if not (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0):
         raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+    policy_reset = None
     if hasattr(policy, "predict"):
         model = policy
         policy = lambda obs: model.predict(obs, deterministic=True)[0]  # noqa: E731
+    elif callable(policy) and callable(getattr(policy, "reset", None)):
+        policy_reset = policy.reset
     elif not callable(policy):
         raise ValueError(f"policy must be a callable obs -> action or have .predict(obs, deterministic=True), "
                          f"got {policy!r}")
@@ -132,6 +141,8 @@ def record_demos(env: gymnasium.Env, policy, n_transitions: int, seed: int) -> d
     episode, reports_success = 0, False
     obs, info = env.reset(seed=int(seed))
     while len(columns["observations"]) < n_transitions:
+        if policy_reset is not None:
+            policy_reset(obs, info)
         while True:
             action = np.asarray(policy(obs), dtype=env.action_space.dtype)
             next_obs, reward, terminated, truncated, next_info = env.step(action)
@@ -155,6 +166,30 @@ def record_demos(env: gymnasium.Env, policy, n_transitions: int, seed: int) -> d
     spec = env.unwrapped.spec if env.spec is None else env.spec
     demos["env_id"] = np.array("" if spec is None else spec.id)
     return demos
+
+
+def generate_task_demos(env_id: str, size: int, seed: int) -> dict[str, np.ndarray]:
+    """An external task's demo set: `size` transitions of its expert (seeded with `seed`) from p0,
+    recorded by `record_demos` on `make_task_env(env_id)` with `seed`."""
+    env = make_task_env(env_id)
+    try:
+        return record_demos(env, EXTERNAL_TASKS[env_id].expert(env, seed=seed), size, seed)
+    finally:
+        env.close()
+
+
+def shipped_task_ids() -> list[str]:
+    """Every task that ships demo sets: the suite's, then the external tasks."""
+    return [*TASKS, *EXTERNAL_TASKS]
+
+
+def check_shipped_task(env_id: str) -> None:
+    """ValueError naming `env_id` unless it is a task that ships demo sets."""
+    if env_id not in EXTERNAL_TASKS:
+        try:
+            task_layout(env_id)
+        except ValueError:
+            raise ValueError(f"no shipped demo sets for {env_id!r}; expected one of {shipped_task_ids()}") from None
 
 
 def content_hash(demos: dict[str, np.ndarray]) -> str:
@@ -220,7 +255,7 @@ def load_demos(size: int = 500, path: str | Path | None = None, env_id: str = DE
                format: str = "gymnasium") -> dict[str, np.ndarray]:
     """A task's shipped demo set by size (500 or 7500), or a file written by `save_demos` at `path`.
 
-    `env_id` names the task (`lava_bridge_mj.TASKS`; LavaBridge-v0 by default); it is ignored with
+    `env_id` names the task (`lava_bridge_mj.TASKS` or an external task; LavaBridge-v0 by default); it is ignored with
     `path`. A file of `record_demos` also holds `states`, `env_id` and maybe `successes` (see there);
     it is checked for consistent fields, its `env_id` read as a str. Returns a dict of arrays, one row per transition: observations, actions, rewards,
     next_observations, terminations, truncations, episode_ids (Gymnasium's names). With
@@ -232,7 +267,7 @@ def load_demos(size: int = 500, path: str | Path | None = None, env_id: str = DE
     if format not in FORMATS:
         raise ValueError(f"format={format!r}; expected one of {FORMATS}")
     if path is None:
-        task_layout(env_id)  # ValueError naming an unknown task
+        check_shipped_task(env_id)
         if size not in SHIPPED_SIZES:
             raise ValueError(f"no shipped demo set of size {size!r}; expected one of {SHIPPED_SIZES}")
         assets = resources.files("lava_bridge_mj.assets")
@@ -286,17 +321,24 @@ def candidate_states(states: np.ndarray, n: int = 150, seed: int = 0) -> np.ndar
     return states[np.sort(rng.choice(len(states), size=min(n, len(states)), replace=False))]
 
 
-def regenerate_demos(check: bool = False) -> bool:
-    """Regenerate every task's shipped sets from their seeds: write them, or with `check` only compare.
+def regenerate_demos(check: bool = False, env_ids: list[str] | None = None) -> bool:
+    """Regenerate the shipped sets of `env_ids` (default: every task's) from their seeds: write them
+    (and their entries of the manifest), or with `check` only compare.
 
     Returns True when (checking) every shipped set is bit-identical to its regeneration.
     """
+    env_ids = shipped_task_ids() if env_ids is None else env_ids
+    for env_id in env_ids:
+        check_shipped_task(env_id)
     assets = Path(str(resources.files("lava_bridge_mj.assets")))
-    manifest, identical = {}, True
-    for env_id, layout in TASKS.items():
+    manifest, identical = json.loads((assets / MANIFEST).read_text()), True
+    for env_id in env_ids:
         manifest[env_id] = {}
         for size in SHIPPED_SIZES:
-            demos = generate_demos(size, SHIPPED_SEEDS[size], LavaBridgeEnv(layout=layout))
+            if env_id in EXTERNAL_TASKS:
+                demos = generate_task_demos(env_id, size, SHIPPED_SEEDS[size])
+            else:
+                demos = generate_demos(size, SHIPPED_SEEDS[size], LavaBridgeEnv(layout=task_layout(env_id)))
             digest = content_hash(demos)
             episodes = int(demos["episode_ids"][-1]) + 1
             name = demo_file(env_id, size)
@@ -340,7 +382,12 @@ def task_env(env_id: str, **kwargs) -> LavaBridgeEnv:
 
 def minari_env_spec(env_id: str) -> gymnasium.envs.registration.EnvSpec:
     """The task's registered EnvSpec, with JSON-serialisable keyword arguments, so that
-    `MinariDataset.recover_environment()` can make the env again."""
+    `MinariDataset.recover_environment()` can make the env again (an external task's with the task's
+    arguments, e.g. PointMaze's sparse reward)."""
+    if env_id in EXTERNAL_TASKS:
+        task = EXTERNAL_TASKS[env_id]
+        spec = task.spec()
+        return dataclasses.replace(spec, kwargs={**spec.kwargs, **task.env_kwargs()})
     spec = gymnasium.spec(env_id)
     if not spec.kwargs:
         return spec
@@ -364,7 +411,8 @@ def to_minari(size: int, env_id: str = DEFAULT_ENV_ID) -> minari.MinariDataset:
     One Minari episode per expert episode (split by `episode_ids`), its observations the episode's
     observations followed by its last next_observation, and the same rows as its `infos["state"]`: a
     Lava Bridge state is its observation (x, y, vx, vy), what `reset(options={"state": s})` takes
-    and the start strategies start from. The set's last episode is cut at the set
+    and the start strategies start from; an external task's are the set's full `states`, and the state
+    after the episode's last action, replayed through `ResetToState`. The set's last episode is cut at the set
     size and recorded as truncated, as the dataset's description says. The dataset goes under
     Minari's root (MINARI_DATASETS_PATH, else ~/.minari/datasets); ValueError, writing nothing, when a
     dataset with that id exists there. Returns the dataset, as `minari.load_dataset(id)` would.
@@ -379,10 +427,13 @@ def to_minari(size: int, env_id: str = DEFAULT_ENV_ID) -> minari.MinariDataset:
         raise ValueError(f"Minari dataset {dataset_id} already exists at {path}; delete it "
                          f"(minari.delete_dataset({dataset_id!r})) to write it again")
     ids = demos["episode_ids"]
+    replay = make_task_env(env_id) if env_id in EXTERNAL_TASKS else None  # for each episode's last state
     episodes = []
     for episode in range(int(ids[-1]) + 1):
         rows = ids == episode
         observations = np.concatenate([demos["observations"][rows], demos["next_observations"][rows][-1:]])
+        states = observations if replay is None else np.concatenate(
+            [demos["states"][rows], [state_after(replay, demos["states"][rows][-1], demos["actions"][rows][-1])]])
         episodes.append(EpisodeBuffer(
             id=episode,
             seed=SHIPPED_SEEDS[size] if episode == 0 else None,  # later episodes go on with its RNG
@@ -393,13 +444,19 @@ def to_minari(size: int, env_id: str = DEFAULT_ENV_ID) -> minari.MinariDataset:
             truncations=demos["truncations"][rows],
             # one state per observation, as minari.DataCollector(ResetToState(env), record_infos=True)
             # records info["state"] of the reset and of every step
-            infos={"state": observations}))
+            infos={"state": states}))
     spec = minari_env_spec(env_id)
+    spaces = {}
+    if replay is not None:  # its sets hold flattened observations: the dataset's space says so
+        spaces = {"observation_space": gymnasium.spaces.flatten_space(replay.observation_space),
+                  "action_space": replay.action_space}
+        replay.close()
+    expert = EXTERNAL_TASKS[env_id].expert_name if env_id in EXTERNAL_TASKS else "ScriptedExpert"
     try:
         with warnings.catch_warnings():  # Minari asks for a code URL and an e-mail; a local export has neither
             warnings.filterwarnings("ignore", message="`(code_permalink|author_email)` is set to None")
             return minari.create_dataset_from_buffers(
-                dataset_id, episodes, env=spec, eval_env=spec, data_format="hdf5", algorithm_name="ScriptedExpert",
+                dataset_id, episodes, env=spec, eval_env=spec, data_format="hdf5", algorithm_name=expert, **spaces,
                 author="lava-bridge-mj", description=minari_description(demos, size, env_id),
                 requirements=["lava-bridge-mj"])
     except BaseException:
@@ -407,23 +464,38 @@ def to_minari(size: int, env_id: str = DEFAULT_ENV_ID) -> minari.MinariDataset:
         raise
 
 
+def state_after(env: gymnasium.Env, state: np.ndarray, action: np.ndarray) -> np.ndarray:
+    """The state `env` (wrapped in ResetToState) reaches from `state` by `action`: a demo set keeps the
+    state before each transition, and a Minari episode also needs the one after its last."""
+    env.reset(options={"state": state})
+    return np.asarray(env.step(action)[4]["state"])
+
+
 def minari_description(demos: dict[str, np.ndarray], size: int, env_id: str) -> str:
     """What the Minari dataset holds, with how its last episode ends."""
     lengths = np.bincount(demos["episode_ids"])
     text = (f"Scripted-expert demonstrations on {env_id}: the {size}-transition set shipped with "
             f"lava-bridge-mj (lava_bridge_mj.load_demos({size}, env_id={env_id!r})), {len(lengths)} episodes "
-            f"from p0 generated with seed {SHIPPED_SEEDS[size]}. Reward +1 at the goal, where an episode "
-            "terminates; 0 otherwise. Each episode's infos['state'] holds the env's state at each observation "
-            "(on Lava Bridge the observation itself), which reset(options={'state': s}) restores.")
-    if demos["truncations"][-1] and lengths[-1] < MAX_EPISODE_STEPS:
+            f"from p0 generated with seed {SHIPPED_SEEDS[size]}. ")
+    if env_id in EXTERNAL_TASKS:
+        task = EXTERNAL_TASKS[env_id]
+        limit = task.max_episode_steps
+        text += (f"The env is lava_bridge_mj.make_task_env({env_id!r}); observations are flattened "
+                 f"(gymnasium.spaces.flatten). {task.description}")
+    else:
+        limit = MAX_EPISODE_STEPS
+        text += "Reward +1 at the goal, where an episode terminates; 0 otherwise."
+    text += (" Each episode's infos['state'] holds the env's state at each observation (on Lava Bridge the "
+             "observation itself), which reset(options={'state': s}) restores.")
+    if demos["truncations"][-1] and lengths[-1] < limit:
         text += (f" The last episode ({len(lengths) - 1}, {lengths[-1]} steps) is cut where the set reaches "
-                 f"{size} transitions, not by the {MAX_EPISODE_STEPS}-step time limit, and is recorded as truncated.")
+                 f"{size} transitions, not by the {limit}-step time limit, and is recorded as truncated.")
     return text
 
 
 def minari_export_command(dataset_id: str) -> str | None:
     """The command that writes the local Minari dataset `dataset_id`, for one `to_minari` writes; else None."""
-    for env_id in TASKS:
+    for env_id in (*TASKS, *EXTERNAL_TASKS):
         for size in SHIPPED_SIZES:
             if dataset_id == minari_dataset_id(size, env_id):
                 return f"python -m lava_bridge_mj demos --minari --size {size} --env {env_id}"

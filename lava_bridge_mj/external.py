@@ -21,6 +21,7 @@ info), so they drive the env from a restored state as from a fresh one.
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 from collections import deque
 from dataclasses import dataclass
@@ -74,6 +75,9 @@ class NamedStarts(gymnasium.Wrapper):
     through any wrapper around this one (`gymnasium.Env.get_wrapper_attr("task_states")`).
     """
 
+    start_names = START_NAMES
+    """The named starts, as `ResetToStateVectorEnv` (and so the trainer's evaluation) reads them."""
+
     def __init__(self, env: gymnasium.Env, task: ExternalTask):
         super().__init__(env)
         if not isinstance(env, ResetToState):
@@ -81,6 +85,21 @@ class NamedStarts(gymnasium.Wrapper):
         self.task = task
         self.task_states = task.task_states(env)
         self.start_rng = np.random.default_rng()  # the draws of "ood"; a seeded reset reseeds it
+
+    # ResetToState's state API, which gymnasium's wrappers do not forward
+    @property
+    def physics_state_size(self) -> int:
+        return self.env.physics_state_size
+
+    @property
+    def state_size(self) -> int:
+        return self.env.state_size
+
+    def get_state(self) -> np.ndarray:
+        return self.env.get_state()
+
+    def check_state(self, state: Any) -> np.ndarray:
+        return self.env.check_state(state)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         options = {} if options is None else options
@@ -109,11 +128,27 @@ class ExternalTask:
     """The package extra of lava-bridge-mj that installs `package`."""
     description: str
     """A paragraph on the task, its starts and its expert."""
+    expert_name = "Expert"
+    """The class of the task's expert (a Minari dataset of its demos names it)."""
 
-    def make_env(self, **kwargs) -> gymnasium.Env:
-        """`gymnasium.make` of the task's env, with the task's arguments, then `kwargs`."""
+    def spec(self) -> gymnasium.envs.registration.EnvSpec:
+        """The env's registered spec (importing the package that registers it)."""
         gymnasium.register_envs(import_extra(self.package, self.extra))
-        return gymnasium.make(self.env_id, **{**self.env_kwargs(), **kwargs})
+        return gymnasium.spec(self.env_id)
+
+    @property
+    def max_episode_steps(self) -> int:
+        """The task's episode horizon: the step limit its env registers (800 PointMaze_Large-v3, 600
+        PointMaze_Medium-v3, 200 OGBench's cube), the limit training and evaluation episodes have."""
+        return int(self.spec().max_episode_steps)
+
+    def make_env(self, time_limit: bool = True, **kwargs) -> gymnasium.Env:
+        """`gymnasium.make` of the task's env, with the task's arguments, then `kwargs`; without
+        gymnasium's TimeLimit when not `time_limit` (a vector env that counts the steps itself)."""
+        spec = self.spec()
+        if not time_limit:
+            spec = dataclasses.replace(spec, max_episode_steps=None)
+        return gymnasium.make(spec, **{**self.env_kwargs(), **kwargs})
 
     def env_kwargs(self) -> dict[str, Any]:
         """The arguments the task gives `gymnasium.make`."""
@@ -227,6 +262,7 @@ class PointMazeTask(ExternalTask):
 
     start_cell: tuple[int, int] = (1, 1)
     goal_cell: tuple[int, int] = (1, 1)
+    expert_name = "MazeExpert"  # the expert's class, as a Minari dataset of its demos names it
 
     def env_kwargs(self) -> dict[str, Any]:
         return {"continuing_task": False, "reward_type": "sparse"}
@@ -247,7 +283,9 @@ class PointMazeTask(ExternalTask):
         qpos = state_offset(unwrapped.model, mujoco.mjtState.mjSTATE_QPOS)
         position = (qpos, qpos + 1)  # the ball's x, y: its two slide joints lead qpos
         goal = (env.physics_state_size, env.physics_state_size + 1)  # the task state (goal_x, goal_y)
-        return TaskStates(position=position, goal_distance=MazeDistance(unwrapped.maze, position, goal))
+        # AuxSS's kernel on raw metres, as on Lava Bridge: sigma 0.3 m within a cell of 1 m
+        return TaskStates(position=position, goal_distance=MazeDistance(unwrapped.maze, position, goal),
+                          kernel_scale=(1.0,) * env.state_size)
 
     def expert(self, env: gymnasium.Env, seed: int | None = None) -> MazeExpert:
         return MazeExpert(env.unwrapped.maze, env.action_space)
@@ -360,6 +398,9 @@ class CubeTask(ExternalTask):
     """(x, y) low and high of the "ood" cube positions: `ManipSpaceEnv._object_sampling_bounds`."""
     ood_clearance: float = 0.1
     """The least distance from an "ood" cube to the target (success is within 0.04)."""
+    kernel_unit: float = 0.1
+    """AuxSS's kernel scale of every state coordinate (`TaskStates.kernel_scale`), in metres."""
+    expert_name = "CubeExpert"
 
     def wrap(self, env: gymnasium.Env) -> gymnasium.Env:
         return SeededCubeReset(env)
@@ -393,7 +434,9 @@ class CubeTask(ExternalTask):
             """The cube's distance to its target (OGBench's success: at most 0.04)."""
             return np.linalg.norm(states[:, list(position)] - states[:, target], axis=1)
 
-        return TaskStates(position=position, goal_distance=goal_distance)
+        # AuxSS's kernel in decimetres: its sigma of 0.3 is 3 cm, the cube's size and success radius
+        return TaskStates(position=position, goal_distance=goal_distance,
+                          kernel_scale=(self.kernel_unit,) * env.state_size)
 
     def expert(self, env: gymnasium.Env, seed: int | None = None) -> CubeExpert:
         return CubeExpert(env, seed=seed)
@@ -429,9 +472,10 @@ EXTERNAL_TASKS: dict[str, ExternalTask] = {task.env_id: task for task in (
 """The external tasks by Gymnasium id."""
 
 
-def make_task_env(env_id: str, **kwargs) -> NamedStarts:
+def make_task_env(env_id: str, time_limit: bool = True, **kwargs) -> NamedStarts:
     """The env of the external task `env_id` (a key of `EXTERNAL_TASKS`): `gymnasium.make` with the
-    task's arguments and `kwargs`, wrapped in `ResetToState` and `NamedStarts`.
+    task's arguments and `kwargs`, wrapped in `ResetToState` and `NamedStarts`; without gymnasium's
+    TimeLimit when not `time_limit`.
 
     ValueError for an id of no external task; ImportError naming the extra to install when the
     package that defines the env is missing.
@@ -439,7 +483,7 @@ def make_task_env(env_id: str, **kwargs) -> NamedStarts:
     if env_id not in EXTERNAL_TASKS:
         raise ValueError(f"{env_id!r} is not an external task; expected one of {sorted(EXTERNAL_TASKS)}")
     task = EXTERNAL_TASKS[env_id]
-    return NamedStarts(ResetToState(task.wrap(task.make_env(**kwargs))), task)
+    return NamedStarts(ResetToState(task.wrap(task.make_env(time_limit, **kwargs))), task)
 
 
 def run_episode(env: gymnasium.Env, policy: Callable[[Any], np.ndarray] | None, *, seed: int | None = None,

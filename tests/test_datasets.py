@@ -121,7 +121,7 @@ def test_cli_writes_minari_datasets(minari_root, tmp_path, capsys):
 
 @pytest.mark.parametrize("argv, message", [
     (["demos", "--minari"], "error: Minari datasets already exist at "),  # 500 exists: 7500 is not written either
-    (["demos", "--minari", "--env", "LavaBridge-v9"], "error: unknown Lava Bridge task 'LavaBridge-v9'"),
+    (["demos", "--minari", "--env", "LavaBridge-v9"], "error: no shipped demo sets for 'LavaBridge-v9'"),
 ])
 def test_cli_bad_minari_export_writes_nothing(minari_root, tmp_path, capsys, argv, message):
     to_minari(500)
