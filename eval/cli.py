@@ -69,9 +69,10 @@ def build_parser(prog: str = "lava-bridge-bench") -> argparse.ArgumentParser:
                             "update for all), e.g. 0-24 or 0,3,5-7; each seed writes the run directory it "
                             "would write alone, OUT/seedS")
     parser.add_argument("--env", dest="env_id", metavar="ID",
-                        help=f"the task, one of {', '.join(TASK_IDS)} (default: {DEFAULTS.env_id}), or any "
-                             f"gymnasium id of a MuJoCo env that lava_bridge_mj.ResetToState serves (e.g. "
-                             f"Hopper-v5), with --demos PATH (docs/any-env.md)")
+                        help=f"the task, one of {', '.join(TASK_IDS)} (default: {DEFAULTS.env_id}), an "
+                             f"external task, one of {', '.join(lava_bridge_mj.EXTERNAL_TASKS)} "
+                             f"(docs/external-tasks.md), or any gymnasium id of a MuJoCo env that "
+                             f"lava_bridge_mj.ResetToState serves (e.g. Hopper-v5), with --demos PATH (docs/any-env.md)")
     parser.add_argument("--steps", type=arguments.positive_int,
                         help=f"online env steps (default: {DEFAULTS.steps}; the paper's protocol: 300000)")
     parser.add_argument("--demos", type=arguments.demo_set, metavar="500|7500|PATH|minari:ID",
@@ -187,8 +188,9 @@ def _train_command(argv: list[str], prog: str) -> int:
     parser = build_parser(prog)
     args = parser.parse_args(argv)
     config = _config_from(args, parser)
-    if (args.video or args.log_videos) and not config.lava_bridge:
-        parser.error(f"--video and --log-videos draw Lava Bridge's p0 and ood rollouts; {config.env_id} is another env")
+    if (args.video or args.log_videos) and not (config.lava_bridge or config.external):
+        parser.error(f"--video and --log-videos draw the p0 and ood rollouts of a Lava Bridge task or an external "
+                     f"task; {config.env_id} is another env")
     try:
         tracking.check_sinks(args.log)
     except ValueError as error:
@@ -270,16 +272,14 @@ def _train_command(argv: list[str], prog: str) -> int:
 
 def write_videos(run, config: RunConfig) -> None:
     """rollouts.mp4 of each seed's policy from p0 and ood, in its run directory (not for diverged seeds)."""
-    import gymnasium
-
     from lava_bridge_mj.eval import video
 
-    env = gymnasium.make(config.env_id, render_mode="rgb_array", **config.env)
+    env, frame = video.video_env(config.env_id, config.env)
     try:
         for i, seed_run in enumerate(run.seed_runs):
             if seed_run.config.seed in run.diverged:
                 continue
-            video.record_rollouts(env, run.policy(i), seed_run.dir / "rollouts.mp4")
+            video.record_rollouts(env, run.policy(i), seed_run.dir / "rollouts.mp4", frame=frame)
             print(f"wrote {seed_run.dir / 'rollouts.mp4'}")
     finally:
         env.close()

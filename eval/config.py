@@ -19,6 +19,7 @@ from lava_bridge_mj.agents.configs import BCConfig, IQLConfig, JSRLConfig, SACCo
 from lava_bridge_mj.agents.methods import METHODS as METHOD_SPECS
 from lava_bridge_mj.agents.strategy_registry import check_strategy_params, strategy_class
 from lava_bridge_mj.demos import MINARI_PREFIX, content_hash, load_minari_demos
+from lava_bridge_mj.external import EXTERNAL_TASKS
 
 METHODS = tuple(METHOD_SPECS)
 """Training methods, by their CLI names (agents/methods.py describes each)."""
@@ -50,17 +51,20 @@ class RunConfig:
     transitions alone (bc, iql)."""
     env_id: str = lava_bridge_mj.ENV_ID
     """The task: an id of `lava_bridge_mj.TASKS` (its layout, its p0 and ood starts, and its shipped
-    demos), or any other gymnasium id whose env `lava_bridge_mj.ResetToState` serves (Hopper-v5, ...),
-    which trains from a demo file or Minari dataset recorded on it (docs/any-env.md)."""
+    demos), an external task of `lava_bridge_mj.external.EXTERNAL_TASKS` (`make_task_env`'s env, its p0
+    and ood starts, its shipped demos; docs/external-tasks.md), or any other gymnasium id whose env
+    `lava_bridge_mj.ResetToState` serves (Hopper-v5, ...), which trains from a demo file or Minari
+    dataset recorded on it (docs/any-env.md)."""
     seed: int = 0
     """Seeds the networks, the env, the start strategy, the replay sampling and the demo subset."""
     steps: int = 50_000
     """Online environment steps (offline methods: gradient steps on the demo transitions)."""
     demos: int | str = 500
     """Which demo set the candidate start states (and HySAC's offline transitions) come from: a shipped
-    set (500 or 7500), the path of a demo file (`lava_bridge_mj.save_demos`), kept as an absolute
-    path, or "minari:ID", the local Minari dataset ID (`lava_bridge_mj.demos.load_minari_demos`; never
-    downloaded). An env that is not a Lava Bridge task starts from the set's full `states`."""
+    set (500 or 7500; of a Lava Bridge task or an external task), the path of a demo file
+    (`lava_bridge_mj.save_demos`), kept as an absolute path, or "minari:ID", the local Minari dataset ID
+    (`lava_bridge_mj.demos.load_minari_demos`; never downloaded). An env that is not a Lava Bridge task
+    starts from the set's full `states`."""
     demos_sha256: str | None = None
     """The content hash (`content_hash`) of the demo file or Minari dataset `demos` names (of its arrays
     as loaded), filled in from it; kept in config.json, so that a resume refuses a set that changed.
@@ -122,10 +126,14 @@ class RunConfig:
             except ValueError as error:
                 raise ValueError(f"{error}; expected a Lava Bridge task ({list(lava_bridge_mj.TASKS)}) or a "
                                  f"registered gymnasium id (\"module:Id\" imports module first)") from None
-            if not isinstance(self.demos, str):
-                raise ValueError(f"env_id {self.env_id!r} is not a Lava Bridge task ({list(lava_bridge_mj.TASKS)}), "
-                                 f"which ships no demos: give demos the path of a demo file recorded on it "
-                                 f"(lava_bridge_mj.record_demos) or '{MINARI_PREFIX}DATASET_ID'")
+            if not isinstance(self.demos, str) and not self.external:
+                raise ValueError(f"env_id {self.env_id!r} ships no demos: give demos the path of a demo file "
+                                 f"recorded on it (lava_bridge_mj.record_demos) or '{MINARI_PREFIX}DATASET_ID'; "
+                                 f"the Lava Bridge tasks {list(lava_bridge_mj.TASKS)} and the external tasks "
+                                 f"{list(EXTERNAL_TASKS)} ship theirs")
+            if self.external and strategy_class(METHOD_SPECS[self.method].start).name == "auxss":
+                # an external task's AuxSS kernel measures its declared position (TaskStates.position)
+                self.strategy = {"kernel_dims": "position", **self.strategy}
         if not isinstance(self.env, dict):
             raise ValueError(f"env must be a dict of the env's keyword arguments, got {self.env!r}")
         try:
@@ -155,6 +163,12 @@ class RunConfig:
         if self.demos.startswith(MINARI_PREFIX):
             return f"Minari dataset {self.demos[len(MINARI_PREFIX):]}"
         return f"demo file {self.demos}"
+
+    @property
+    def external(self) -> bool:
+        """True when `env_id` is an external task (`lava_bridge_mj.external.EXTERNAL_TASKS`): its env is
+        `make_task_env`'s, with p0 and ood, and it ships demo sets as Lava Bridge's tasks do."""
+        return self.env_id in EXTERNAL_TASKS
 
     def load_demos(self, env: Any = None) -> dict[str, Any]:
         """The run's demo set: the shipped set (`load_demos`), the file `demos` (`load_demos(path=...)`)

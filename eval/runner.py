@@ -134,6 +134,7 @@ class Run:
         self.sinks: list[list] = [[] for _ in configs]  # each seed's tracking sinks (eval/tracking.py)
         self.log_every = TRAIN_LOG_EVERY  # steps between the sinks' training scalars
         self.video_env = None  # renders each evaluation's rollouts, when tracking asks for videos
+        self.video_frame = None  # and draws each frame of them (eval/video.py's video_env)
 
     # single-seed conveniences
     @property
@@ -317,9 +318,9 @@ class Run:
         rollouts of each evaluation as videos/step_N.mp4 when `videos`; closed however the block ends."""
         self.log_every = check_integer("log_every", log_every, 1)
         if videos:
-            import gymnasium
+            from lava_bridge_mj.eval.video import video_env
 
-            self.video_env = gymnasium.make(self.config.env_id, render_mode="rgb_array", **self.config.env)
+            self.video_env, self.video_frame = video_env(self.config.env_id, self.config.env)
         label = f"{self.config.method} on {self.config.env_id}"
         try:
             for i, seed_run in enumerate(self.seed_runs):
@@ -340,7 +341,7 @@ class Run:
             from lava_bridge_mj.eval.video import record_rollouts
 
             video = seed_run.dir / VIDEOS / f"step_{self.step}.mp4"
-            record_rollouts(self.video_env, self.policy(i), video, episodes_per_start=1)
+            record_rollouts(self.video_env, self.policy(i), video, episodes_per_start=1, frame=self.video_frame)
         for sink in self.sinks[i]:
             sink.log(row, seed_run.strategy.probabilities, video)
 

@@ -142,6 +142,25 @@ def _demo_sets(text: str) -> list:
     return values
 
 
+def _env_ids(text: str) -> list[str]:
+    """An argparse type: comma-separated distinct tasks (Lava Bridge, external) or registered gymnasium ids."""
+    from lava_bridge_mj.state_vector import env_spec
+
+    known = (*lava_bridge_mj.TASKS, *lava_bridge_mj.EXTERNAL_TASKS)
+    env_ids = [part.strip() for part in text.split(",")]
+    for env_id in env_ids:
+        if env_id not in known:
+            try:
+                env_spec(env_id)
+            except ValueError:
+                raise argparse.ArgumentTypeError(f"unknown task {env_id!r}; expected some of {', '.join(known)} "
+                                                 f"or a registered gymnasium id (\"module:Id\" imports module "
+                                                 f"first)") from None
+    if len(set(env_ids)) != len(env_ids):
+        raise argparse.ArgumentTypeError(f"tasks must be distinct, got {text!r}")
+    return env_ids
+
+
 def _choices(kind: str, allowed: Sequence, convert=str):
     """An argparse type: a comma-separated list of distinct values from `allowed`."""
     def parse(text: str) -> list:
@@ -169,10 +188,12 @@ def build_parser() -> argparse.ArgumentParser:
                     "single lava-bridge-bench run writes (OUT/METHOD-dDEMOS/seedSEED), as batched jobs on "
                     "local worker processes or Ray. Running it again skips finished runs and resumes "
                     "unfinished ones; OUT/sweep.json records every job's status.")
-    parser.add_argument("--envs", type=_choices("task", tuple(lava_bridge_mj.TASKS)), metavar="LIST",
+    parser.add_argument("--envs", type=_env_ids, metavar="LIST",
                         default=[lava_bridge_mj.ENV_ID],
                         help=f"comma-separated tasks, some of {', '.join(lava_bridge_mj.TASKS)} (default: "
-                             f"{lava_bridge_mj.ENV_ID}); runs of another task go to OUT/TASK/METHOD-dDEMOS")
+                             f"{lava_bridge_mj.ENV_ID}), the external tasks {', '.join(lava_bridge_mj.EXTERNAL_TASKS)}, "
+                             f"or other gymnasium ids with --demos FILE (docs/any-env.md); runs of another task "
+                             f"go to OUT/TASK/METHOD-dDEMOS")
     parser.add_argument("--methods", required=True, type=_choices("method", METHODS), metavar="LIST",
                         help=f"comma-separated methods, some of {', '.join(METHODS)}")
     parser.add_argument("--seeds", required=True, type=seed_list, metavar="LIST",

@@ -16,7 +16,9 @@ renamed when complete (the still with it): a failure while writing (a full disk)
 leaves nothing behind and replaces nothing.
 
 Rendering goes through the env's `render_mode="rgb_array"` (mujoco.Renderer, EGL or OSMesa);
-the trail and the start marker are extra geoms added to the scene before each frame is drawn.
+on Lava Bridge the trail and the start marker are extra geoms added to the scene before each frame
+is drawn. An external task (`lava_bridge_mj.external.EXTERNAL_TASKS`) renders through its own env's
+camera, without trail (`video_env`); another env is refused.
 """
 
 from __future__ import annotations
@@ -69,10 +71,46 @@ def render_frame(env, trail: list[np.ndarray]) -> np.ndarray:
     return renderer.render()
 
 
+def own_frame(env, trail: list[np.ndarray]) -> np.ndarray:
+    """One frame of `env` (made with render_mode="rgb_array") as the env renders it (no trail)."""
+    return env.render()
+
+
+def video_env(env_id: str, env_kwargs: dict[str, Any], max_episode_steps: int | None = None):
+    """(the env that renders the rollouts of a run of `env_id`, its frame function): Lava Bridge's
+    env with `render_frame`; an external task's `make_task_env` with `own_frame`, seen as the learners
+    see it (flattened observations, actions in [-1, 1] rescaled to its bounds, as
+    `ResetToStateVectorEnv` does). ValueError for any other env."""
+    import gymnasium
+
+    import lava_bridge_mj
+
+    limit = {} if max_episode_steps is None else {"max_episode_steps": max_episode_steps}
+    if env_id in lava_bridge_mj.TASKS:
+        return gymnasium.make(env_id, render_mode="rgb_array", **limit, **env_kwargs), render_frame
+    if env_id in lava_bridge_mj.EXTERNAL_TASKS:
+        env = lava_bridge_mj.make_task_env(env_id, render_mode="rgb_array", **limit, **env_kwargs)
+        flat = gymnasium.wrappers.FlattenObservation(env)
+        return gymnasium.wrappers.RescaleAction(flat, -1.0, 1.0), own_frame
+    raise ValueError(f"videos draw the rollouts of a Lava Bridge task or an external task "
+                     f"({list(lava_bridge_mj.EXTERNAL_TASKS)}); {env_id} is another env")
+
+
+def video_horizon(env_id: str) -> int:
+    """The longest episode a video of `env_id` shows: the task's step limit."""
+    import lava_bridge_mj
+
+    if env_id in lava_bridge_mj.EXTERNAL_TASKS:
+        return lava_bridge_mj.EXTERNAL_TASKS[env_id].max_episode_steps
+    return lava_bridge_mj.MAX_EPISODE_STEPS
+
+
 def record_rollouts(env, policy: Callable[[np.ndarray], np.ndarray], path: str | Path, *,
                     starts: list[str] | tuple[str, ...] = ("p0", "ood"), episodes_per_start: int = 2,
-                    seed: int = 0, fps: int | None = None, still: str | Path | None = None) -> dict:
-    """Roll `policy` out from each named start distribution and write one mp4 to `path`.
+                    seed: int = 0, fps: int | None = None, still: str | Path | None = None,
+                    frame: Callable[[Any, list[np.ndarray]], np.ndarray] = render_frame) -> dict:
+    """Roll `policy` out from each named start distribution and write one mp4 to `path`; `frame`
+    draws each frame from the env and the positions so far (`video_env` gives the env's).
 
     Returns per-start success counts. `still`, if given, receives the last frame as an image (PNG or
     JPEG by its suffix). The video is written to a temporary name and renamed when complete, the
@@ -87,7 +125,7 @@ def record_rollouts(env, policy: Callable[[np.ndarray], np.ndarray], path: str |
     if still is not None:
         Path(still).parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.stem}.partial{os.getpid()}{path.suffix}")
-    fps = fps or env.metadata.get("render_fps", 10)
+    fps = fps or env.metadata.get("render_fps") or 10
     successes = {start: 0 for start in starts}
     try:
         with tempfile.TemporaryFile() as ffmpeg_log:
@@ -113,14 +151,14 @@ def record_rollouts(env, policy: Callable[[np.ndarray], np.ndarray], path: str |
                     for episode in range(episodes_per_start):
                         obs, _ = env.reset(seed=seed + episode, options={"start": start})
                         trail = [obs[:2].copy()]
-                        append(render_frame(env, trail))
+                        append(frame(env, trail))
                         done = False
                         while not done:
                             obs, _, terminated, truncated, info = env.step(policy(obs))
                             trail.append(obs[:2].copy())
-                            append(render_frame(env, trail))
+                            append(frame(env, trail))
                             done = terminated or truncated
-                        successes[start] += bool(info["is_success"])
+                        successes[start] += bool(info.get("success", info.get("is_success")))
             code, reason = _ffmpeg_failure(ffmpeg_log)  # imageio does not check how ffmpeg ended
             if reason:
                 raise OSError(code, reason, str(path))
@@ -128,7 +166,7 @@ def record_rollouts(env, policy: Callable[[np.ndarray], np.ndarray], path: str |
             raise OSError(*_truncation_reason(tmp), str(path))
         if still is not None:
             image = io.BytesIO()
-            imageio.imwrite(image, render_frame(env, trail), format=Path(still).suffix.lstrip(".").lower())
+            imageio.imwrite(image, frame(env, trail), format=Path(still).suffix.lstrip(".").lower())
             atomic_write(still, lambda f: f.write(image.getvalue()))
         tmp.replace(path)
     finally:
@@ -274,8 +312,6 @@ def load_policy(run_dir: str | Path, policy: str = "final") -> tuple[Policy, Any
 
 
 def main(argv: list[str] | None = None) -> int:
-    import gymnasium
-
     import lava_bridge_mj
     from lava_bridge_mj.eval import arguments
 
@@ -292,8 +328,9 @@ def main(argv: list[str] | None = None) -> int:
                         "unfinished run) or step_N (policies/step_N.pt) (default: %(default)s)")
     parser.add_argument("--episodes", type=int, default=2,
                         help=f"episodes per start distribution, 1-{MAX_EPISODES} (default: %(default)s)")
-    parser.add_argument("--max-steps", type=int, default=lava_bridge_mj.MAX_EPISODE_STEPS,
-                        help="cut each episode after this many steps (default: %(default)s, the env's limit)")
+    parser.add_argument("--max-steps", type=int, default=None,
+                        help=f"cut each episode after this many steps (default: the task's limit, "
+                             f"{lava_bridge_mj.MAX_EPISODE_STEPS} on Lava Bridge)")
     parser.add_argument("--seed", type=arguments.seed, default=0, help="episode i starts from reset(seed=SEED + i)")
     parser.add_argument("--out", type=Path, default=None, help="video file to write, .mp4 (default: "
                         "RUN_DIR/rollouts.mp4, RUN_DIR/rollouts_step_N.mp4 for --policy step_N, runs/expert.mp4 "
@@ -304,9 +341,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("give either RUN_DIR or --expert")
     if args.env_id is not None and not args.expert:
         parser.error("--env goes with --expert; a run is rendered on its own task")
-    for name, most in (("episodes", MAX_EPISODES), ("max_steps", lava_bridge_mj.MAX_EPISODE_STEPS)):
-        if not 1 <= getattr(args, name) <= most:
-            parser.error(f"--{name.replace('_', '-')} must be in 1-{most}, got {getattr(args, name)}")
+    if not 1 <= args.episodes <= MAX_EPISODES:
+        parser.error(f"--episodes must be in 1-{MAX_EPISODES}, got {args.episodes}")
 
     def error(message: str, code: int = 2) -> int:
         print(f"lava-bridge-bench video: error: {message}", file=sys.stderr)
@@ -330,13 +366,19 @@ def main(argv: list[str] | None = None) -> int:
         except ValueError as problem:
             return error(str(problem))
         env_id, env_kwargs = config.env_id, config.env
+    most = video_horizon(env_id)
+    max_steps = most if args.max_steps is None else args.max_steps
+    if not 1 <= max_steps <= most:
+        parser.error(f"--max-steps must be in 1-{most}, got {max_steps} ({env_id}'s step limit is {most})")
+    try:
+        env, frame = video_env(env_id, env_kwargs, max_steps)
+    except ValueError as problem:
+        return error(str(problem))
     previous = signal.signal(signal.SIGTERM, arguments.raise_keyboard_interrupt) if arguments.in_main_thread() else None
-    env = gymnasium.make(env_id, render_mode="rgb_array", max_episode_steps=args.max_steps,
-                         **env_kwargs)
     try:
         policy = policy or lava_bridge_mj.ScriptedExpert(env).act
         successes = record_rollouts(env, policy, out, episodes_per_start=args.episodes, seed=args.seed,
-                                    still=args.still)
+                                    still=args.still, frame=frame)
     except OSError as problem:  # a full disk, a directory that turned read-only, ...
         return error(f"cannot write {problem.filename or out}: {problem.strerror or problem}; nothing written")
     except KeyboardInterrupt:

@@ -1,7 +1,8 @@
 """ResetToStateVectorEnv: K copies of any MuJoCo Gymnasium env, stepped as `LavaBridgeVectorEnv` steps
 Lava Bridge, so that the trainer (eval/runner.py) and its evaluation run every method on any such env.
 
-Each sub-env is `ResetToState(gymnasium.make(env_id, **env_kwargs))` without gymnasium's TimeLimit: the
+Each sub-env is `ResetToState(gymnasium.make(env_id, **env_kwargs))` (an external task's:
+`lava_bridge_mj.external.make_task_env(env_id)`, with its "p0" and "ood") without gymnasium's TimeLimit: the
 vector env counts each episode's steps itself and truncates at `max_episode_steps` (the spec's), so a
 checkpoint can restore how far an episode had gone. What the learners see is the same for every env:
 
@@ -41,6 +42,10 @@ VECTOR_RESET_KEYS = ("state", "start", "reset_mask")
 def env_spec(env_id: str) -> gymnasium.envs.registration.EnvSpec:
     """The registered spec of `env_id`; "module:Id" imports the module first (it registers Id), as
     `gymnasium.make` does. ValueError naming an id gymnasium does not know."""
+    from lava_bridge_mj.external import EXTERNAL_TASKS
+
+    if env_id in EXTERNAL_TASKS:
+        return EXTERNAL_TASKS[env_id].spec()
     module, _, name = env_id.rpartition(":")
     try:
         if module:
@@ -50,10 +55,15 @@ def env_spec(env_id: str) -> gymnasium.envs.registration.EnvSpec:
         raise ValueError(f"unknown env_id {env_id!r}: {error}") from None
 
 
-def make_state_env(env_id: str, time_limit: bool = True, **env_kwargs: Any) -> ResetToState:
+def make_state_env(env_id: str, time_limit: bool = True, **env_kwargs: Any) -> gymnasium.Env:
     """`ResetToState(gymnasium.make(env_id, **env_kwargs))`; without gymnasium's TimeLimit when not
     `time_limit`. ValueError naming `env_id` for an id gymnasium does not know or an env ResetToState
-    cannot serve."""
+    cannot serve. An external task (`lava_bridge_mj.external.EXTERNAL_TASKS`) is its `make_task_env`:
+    the task's arguments, its named starts and its `task_states`."""
+    from lava_bridge_mj.external import EXTERNAL_TASKS, make_task_env
+
+    if env_id in EXTERNAL_TASKS:
+        return make_task_env(env_id, time_limit=time_limit, **env_kwargs)
     spec = env_spec(env_id)
     if not time_limit:
         spec = dataclasses.replace(spec, max_episode_steps=None)
