@@ -12,15 +12,17 @@ from conftest import metrics_without_wall_time
 
 import lava_bridge_mj
 from lava_bridge_mj import EXTERNAL_TASKS, RunConfig, load_demos, make_task_env
+from lava_bridge_mj.agents.rfcl import FORWARD_SEEDS, p0_states
 from lava_bridge_mj.demos import SHIPPED_SEEDS, SHIPPED_SIZES, content_hash, generate_task_demos
 from lava_bridge_mj.eval.cli import main as cli_main
+from lava_bridge_mj.eval.run_files import EPISODE_LOG
 from lava_bridge_mj.state_vector import ResetToStateVectorEnv
 
 pytest.importorskip("gymnasium_robotics")
 pytest.importorskip("ogbench")
 
 MEDIUM, LARGE, CUBE = "PointMaze_Medium-v3", "PointMaze_Large-v3", "cube-single-singletask-task1-v0"
-METHODS = ("sac", "auxss", "omega_ss", "uniform_ss", "goaldist_ss", "reverse_ss", "hysac_auxss")
+METHODS = ("sac", "auxss", "omega_ss", "uniform_ss", "goaldist_ss", "reverse_ss", "rfcl_reverse", "rfcl", "hysac_auxss")
 """Every method that starts training episodes from p0 or from demo states (the registry has no rfcl;
 reverse_ss is its reverse curriculum)."""
 TINY = ["--set", "sac.hidden_sizes=[16,16]", "--set", "sac.batch_size=32", "--set", "sac.buffer_size=500",
@@ -117,7 +119,12 @@ def test_every_method_trains_two_seeds_by_id_evaluated_from_p0_and_ood(medium_ru
             assert 0.0 <= float(row[f"success_{start}"]) <= 1.0 and np.isfinite(float(row[f"return_{start}"]))
         if method != "sac":  # the candidate start states are states of the shipped set
             states = np.load(run / "start_weights.npz")["states"]
-            assert all((demos["states"] == state).all(axis=1).any() for state in states)
+            from_demos = np.array([(demos["states"] == state).all(axis=1).any() for state in states])
+            if method == "rfcl":  # then the forward stage's p0 states: the task's own reset states, seeds 0, 1, ...
+                assert from_demos[:-FORWARD_SEEDS].all() and len(states) > FORWARD_SEEDS
+                np.testing.assert_array_equal(states[-FORWARD_SEEDS:], p0_states(make_task_env(MEDIUM), FORWARD_SEEDS))
+            else:
+                assert from_demos.all()
     if method in ("auxss", "hysac_auxss"):
         assert config["strategy"] == {"kernel_dims": "position"}
 
@@ -125,8 +132,7 @@ def test_every_method_trains_two_seeds_by_id_evaluated_from_p0_and_ood(medium_ru
 def test_a_batched_seed_equals_the_seed_alone(medium_runs, tmp_path):
     train_cli(tmp_path / "alone", "auxss", "1")
     assert metrics_without_wall_time(tmp_path / "alone") == metrics_without_wall_time(medium_runs / "auxss" / "seed1")
-    for name in ("episodes.csv",):
-        assert (tmp_path / "alone" / name).read_text() == (medium_runs / "auxss" / "seed1" / name).read_text()
+    assert (tmp_path / "alone" / EPISODE_LOG).read_bytes() == (medium_runs / "auxss" / "seed1" / EPISODE_LOG).read_bytes()
     alone, batched = (np.load(d / "start_weights.npz") for d in (tmp_path / "alone", medium_runs / "auxss" / "seed1"))
     np.testing.assert_array_equal(alone["probabilities"], batched["probabilities"])
 
