@@ -115,7 +115,7 @@ study-extension: setup
 
 # RFCL as published (rfcl: its reverse and forward curricula; rfcl_reverse: the reverse one alone) on every
 # task of the suite, at the study's budgets, seeds and sweep options; the study's second question then reads
-# AuxSS against rfcl on each task that has its runs (eval/study.py). 2 x 20 seeds x 700,000 steps = 28 M
+# AuxSS against rfcl on each task that has its runs (eval/analysis/study.py). 2 x 20 seeds x 700,000 steps = 28 M
 # seed-steps, about 9 hours at the study's 849 seed-steps/s: `lava-bridge-bench train --method rfcl
 # --env LavaBridge-v0 --seeds 0-9 --steps 2000 --eval-every 2000 --threads 1` used 33.2 CPU seconds, 602
 # seed-steps per CPU second (set-up and one evaluation round included; CPU time, as the machine was loaded),
@@ -135,7 +135,7 @@ study-rfcl: setup
 # (at 100k, and the two crossings extended to the paper's 300k), and the study's finished runs (make study;
 # each task at the budget it was trained to, so no --budget), and the far start's reverse curriculum with and
 # without its shortened time limit beside AuxSS (results/study_ablations). Then the generated parts of the docs and
-# results/INDEX.md are rewritten from the committed data (eval/doc_tables.py).
+# results/INDEX.md are rewritten from the committed data (eval/analysis/doc_tables.py).
 report: setup
 	$(BIN)/lava-bridge-bench report results/protocol --budget 100000 --out docs/report
 	$(BIN)/lava-bridge-bench report results/protocol/auxss-d500 results/protocol/sac-d500 results/protocol/omega_ss-d500 \
@@ -156,14 +156,14 @@ report: setup
 	$(BIN)/lava-bridge-bench report results/study/LavaBridgeFarStart-v0/auxss-d500 \
 	    results/study/LavaBridgeFarStart-v0/reverse_ss-d500 results/study_ablations/LavaBridgeFarStart-v0 \
 	    --seeds $(STUDY_SEEDS) --all-pairs --out docs/report_reverse_limit
-	$(BIN)/python -m lava_bridge_mj.eval.doc_tables
+	$(BIN)/python -m lava_bridge_mj.eval.analysis.doc_tables
 
 # The plain episode logs (episodes.csv) under COMPRESS_DIRS rewritten in place as episodes.csv.gz, the form the
 # trainer writes, each checked to decompress to the bytes it replaces before the plain one goes
-# (eval/compress.py). The reports read both forms alike; safe to run again.
+# (eval/training/compress.py). The reports read both forms alike; safe to run again.
 COMPRESS_DIRS ?= results
 compress-results: setup
-	$(BIN)/python -m lava_bridge_mj.eval.compress $(COMPRESS_DIRS)
+	$(BIN)/python -m lava_bridge_mj.eval.training.compress $(COMPRESS_DIRS)
 
 setup: gl $(STAMP)
 

@@ -1,6 +1,6 @@
 """The training methods, each described once: its learner, its start strategy and how it uses the demos.
 
-The training loop (eval/runner.py) reads only these fields, so a new method is one `Method` entry in
+The training loop (eval/training/runner.py) reads only these fields, so a new method is one `Method` entry in
 `METHODS` plus its algorithm's file. Every registered start strategy (agents/strategy_registry.py) is
 a method of its own, SAC from its starts, named as the strategy (p0's is plain SAC, "sac"), so a new
 strategy needs no entry here. Importing this module loads no learner (and no torch):
@@ -50,7 +50,7 @@ class Method:
         """The demo states its start strategy chooses among: its strategy's `candidates` ("subset", a
         seeded random subset of `demo_subset` of them, the same for every method that uses it;
         "demo_episodes", every demo episode that reaches the goal, whole and in time order, with each
-        state's episode id; eval/seed_run.py `candidate_states`)."""
+        state's episode id; eval/training/seed_run.py `candidate_states`)."""
         return STRATEGIES[self.start].candidates
 
     @property

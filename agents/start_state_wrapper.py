@@ -2,7 +2,7 @@
 
 `StartSelector` is the bookkeeping for one env: it draws the start index with its own generator,
 counts the episode's steps and reports the finished episode to the strategy exactly once.
-`StartStateWrapper` puts it around any gymnasium env; the batched trainer (eval/runner.py) keeps
+`StartStateWrapper` puts it around any gymnasium env; the batched trainer (eval/training/runner.py) keeps
 one selector per sub-env of a `LavaBridgeVectorEnv`. Both give the same starts and reports.
 """
 

@@ -91,7 +91,7 @@ class StartStrategy:
     candidates = "subset"
     """The demo states it chooses among in a run: "subset", a seeded random subset of the demo states,
     the same for every strategy that uses it; "demo_episodes", every demo episode that reaches the goal,
-    whole and in time order, with each state's episode id (eval/seed_run.py `candidate_states`)."""
+    whole and in time order, with each state's episode id (eval/training/seed_run.py `candidate_states`)."""
     run_supplied: tuple[str, ...] = ()
     """Parameters that only code supplies (a run from its context, or a caller), never a config: an env
     to roll out in, a function, the candidates' own episode ids."""

@@ -35,7 +35,7 @@ import numpy as np
 
 import lava_bridge_mj
 from lava_bridge_mj.agents.omega_ss import OmegaSS, estimate_random_policy_safety
-from lava_bridge_mj.eval import run_files
+from lava_bridge_mj.eval.training import run_files
 
 CANDIDATES = 150
 """The runner's default candidate subset (RunConfig.demo_subset)."""
@@ -59,7 +59,7 @@ def run_episodes(env, policy, episodes: int, start: str, seed: int) -> dict:
 
 
 def candidate_states(states: np.ndarray, seed: int) -> np.ndarray:
-    """The candidate start states a run of `seed` draws from the demo states (eval/runner.py's draw)."""
+    """The candidate start states a run of `seed` draws from the demo states (eval/training/runner.py's draw)."""
     rng = np.random.default_rng([seed, 2024])
     return states[np.sort(rng.choice(len(states), size=min(CANDIDATES, len(states)), replace=False))]
 

@@ -20,8 +20,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from lava_bridge_mj.eval import run_files
-from lava_bridge_mj.eval.summary import EPISODE_COLUMNS, read_csv
+from lava_bridge_mj.eval.training import run_files
+from lava_bridge_mj.eval.analysis.summary import EPISODE_COLUMNS, read_csv
 
 ROOT = Path(__file__).resolve().parent.parent
 

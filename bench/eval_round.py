@@ -6,7 +6,7 @@ ways, on the same actors:
   per seed  the loop the trainer ran before batched evaluation: seed by seed and start by start, one
             single env per episode, stepped one by one, and each step one call of the seed's policy
             (`agent.policy(i)`, which runs every member of the stacked actor on that seed's rows)
-  batched   eval/evaluate.py's `evaluate`, as the trainer runs it now: every seed's episodes of one
+  batched   eval/training/evaluate.py's `evaluate`, as the trainer runs it now: every seed's episodes of one
             start distribution in one LavaBridgeVectorEnv, one actor call per step for all seeds
 
 Both run on untrained actors (SAC's, default 64x64; their deterministic pushes mostly hold the ball
@@ -40,8 +40,8 @@ import mujoco
 import numpy as np
 import torch
 
-from lava_bridge_mj.eval.evaluate import EVAL_SEED, EVAL_STARTS, MAX_EVAL_ENVS, evaluate
-from lava_bridge_mj.eval.runner import RunConfig, make_agent, train
+from lava_bridge_mj.eval.training.evaluate import EVAL_SEED, EVAL_STARTS, MAX_EVAL_ENVS, evaluate
+from lava_bridge_mj.eval.training.runner import RunConfig, make_agent, train
 from lava_bridge_mj.vector import LavaBridgeVectorEnv
 from difficulty import code_version  # bench/ is on sys.path when this script runs
 

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lava_bridge_mj.eval import run_files
+from lava_bridge_mj.eval.training import run_files
 from single_seed_speed import commit_tree, importable_tree  # bench/ is on sys.path when this script runs
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -28,8 +28,8 @@ import numpy as np
 import torch
 
 from lava_bridge_mj.agents.sac import SACConfig
-from lava_bridge_mj.eval import runner
-from lava_bridge_mj.eval.runner import Run, RunConfig
+from lava_bridge_mj.eval.training import runner
+from lava_bridge_mj.eval.training.runner import Run, RunConfig
 from lava_bridge_mj.task_physics import LavaBridgeTask
 from lava_bridge_mj.vector import LavaBridgeVectorEnv
 from difficulty import code_version  # bench/ is on sys.path when this script runs
@@ -63,7 +63,7 @@ def instrument_classes() -> None:
     runner.SeedRun.observe = timed(runner.SeedRun.observe, "train: store transitions")
     runner.SeedRun.sample = timed(runner.SeedRun.sample, "train: replay sampling")
     runner.stack_batches = timed(runner.stack_batches, "train: replay sampling")
-    # evaluation steps each episode's MjData with the task itself (eval/evaluate.py); in training the
+    # evaluation steps each episode's MjData with the task itself (eval/training/evaluate.py); in training the
     # same calls run inside the vector env's step and resets, which are timed as a whole
     LavaBridgeTask.step = timed(LavaBridgeTask.step, lambda: "eval: env step (task.step)" if in_evaluation else None)
     LavaBridgeVectorEnv.reset = timed(LavaBridgeVectorEnv.reset, lambda: "eval: env reset" if in_evaluation else None)

@@ -28,7 +28,7 @@ import torch
 
 import lava_bridge_mj
 from lava_bridge_mj.agents.sac import SACConfig
-from lava_bridge_mj.eval.runner import RunConfig, train
+from lava_bridge_mj.eval.training.runner import RunConfig, train
 
 LEARNING_STARTS = 1000
 BATCH = 256

@@ -23,7 +23,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from lava_bridge_mj.eval import sweep
+from lava_bridge_mj.eval.sweeps import sweep
 
 
 def load() -> str:

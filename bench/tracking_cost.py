@@ -28,9 +28,9 @@ from pathlib import Path
 import torch
 
 from difficulty import code_version  # bench/ is on sys.path when this script runs
-from lava_bridge_mj.eval import runner
-from lava_bridge_mj.eval.config import RunConfig
-from lava_bridge_mj.eval.tracking import TRAIN_LOG_EVERY, training_scalars
+from lava_bridge_mj.eval.training import runner
+from lava_bridge_mj.eval.training.config import RunConfig
+from lava_bridge_mj.eval.training.tracking import TRAIN_LOG_EVERY, training_scalars
 
 
 class LoggingTimer:

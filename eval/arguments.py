@@ -15,9 +15,9 @@ from collections.abc import Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
-from lava_bridge_mj.eval.atomic import nearest_existing
+from lava_bridge_mj.eval.training.atomic import nearest_existing
 from lava_bridge_mj.demos import MINARI_PREFIX
-from lava_bridge_mj.eval.config import MAX_SEED
+from lava_bridge_mj.eval.training.config import MAX_SEED
 
 
 def int_at_least(minimum: int, what: str, maximum: int | None = None):

@@ -29,15 +29,16 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import lava_bridge_mj  # noqa: E402
 from lava_bridge_mj.agents.methods import METHODS as METHOD_SPECS  # noqa: E402
-from lava_bridge_mj.eval import arguments, tracking  # noqa: E402
-from lava_bridge_mj.eval.config import METHODS, ConfigurationError, RunConfig, check_batch_fits  # noqa: E402
-from lava_bridge_mj.eval.run_files import run_files  # noqa: E402
+from lava_bridge_mj.eval import arguments  # noqa: E402
+from lava_bridge_mj.eval.training import tracking  # noqa: E402
+from lava_bridge_mj.eval.training.config import METHODS, ConfigurationError, RunConfig, check_batch_fits  # noqa: E402
+from lava_bridge_mj.eval.training.run_files import run_files  # noqa: E402
 
 DEFAULTS = RunConfig()
 TASK_IDS = tuple(lava_bridge_mj.TASKS)
-COMMANDS = {"train": "lava_bridge_mj.eval.cli", "sweep": "lava_bridge_mj.eval.sweep",
-            "report": "lava_bridge_mj.eval.report", "video": "lava_bridge_mj.eval.video",
-            "summary": "lava_bridge_mj.eval.summary", "export": "lava_bridge_mj.eval.export"}
+COMMANDS = {"train": "lava_bridge_mj.eval.cli", "sweep": "lava_bridge_mj.eval.sweeps.sweep",
+            "report": "lava_bridge_mj.eval.analysis.report", "video": "lava_bridge_mj.eval.video",
+            "summary": "lava_bridge_mj.eval.analysis.summary", "export": "lava_bridge_mj.eval.sweeps.export"}
 """`lava-bridge-bench NAME ...` runs the module's main(rest of argv); without a name, `train`."""
 COMMAND_HELP = {"train": "train one method, one seed or a batch of seeds (the default command)",
                 "sweep": "every method x demo set x seed, as batched jobs on local worker processes or Ray",
@@ -227,7 +228,7 @@ def _train_command(argv: list[str], prog: str) -> int:
 
     import torch  # after argument checks, so --help and usage errors are instant
 
-    from lava_bridge_mj.eval.runner import RunInterrupted, train
+    from lava_bridge_mj.eval.training.runner import RunInterrupted, train
 
     torch.set_num_threads(args.threads)
 

@@ -40,7 +40,7 @@ import imageio.v2 as imageio
 import mujoco
 import numpy as np
 
-from lava_bridge_mj.eval.atomic import nearest_existing
+from lava_bridge_mj.eval.training.atomic import nearest_existing
 
 VIDEO_SUFFIXES = (".mp4",)
 STILL_SUFFIXES = (".png", ".jpg", ".jpeg")
@@ -118,7 +118,7 @@ def record_rollouts(env, policy: Callable[[np.ndarray], np.ndarray], path: str |
     nor a still without its video. A failure while writing (a full disk) is an OSError naming the
     file, with ffmpeg's own reason where it gave one.
     """
-    from lava_bridge_mj.eval.atomic import atomic_write
+    from lava_bridge_mj.eval.training.atomic import atomic_write
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -270,9 +270,9 @@ def load_policy(run_dir: str | Path, policy: str = "final") -> tuple[Policy, Any
 
     Returns (the policy, the run's RunConfig, a description of what was loaded). ValueError with a
     one-line reason when the directory, its config or the policy is missing or unreadable."""
-    from lava_bridge_mj.eval.config import RunConfig
-    from lava_bridge_mj.eval.run_files import load_torch, read_config
-    from lava_bridge_mj.eval.runner import make_agent
+    from lava_bridge_mj.eval.training.config import RunConfig
+    from lava_bridge_mj.eval.training.run_files import load_torch, read_config
+    from lava_bridge_mj.eval.training.runner import make_agent
 
     run_dir = Path(run_dir)
     spec = POLICY_SPEC.fullmatch(policy)

@@ -12,7 +12,7 @@ projects' tasks with named starts and an expert (external.py; their projects are
 imported on first use).
 
 Training from Python: `lava_bridge_mj.train(lava_bridge_mj.RunConfig(method="auxss"), "runs/auxss")`
-(eval/runner.py) returns the finished run; both load on first use, so importing the package for the
+(eval/training/runner.py) returns the finished run; both load on first use, so importing the package for the
 env alone loads no torch.
 """
 

@@ -1,5 +1,5 @@
 """ResetToStateVectorEnv: K copies of any MuJoCo Gymnasium env, stepped as `LavaBridgeVectorEnv` steps
-Lava Bridge, so that the trainer (eval/runner.py) and its evaluation run every method on any such env.
+Lava Bridge, so that the trainer (eval/training/runner.py) and its evaluation run every method on any such env.
 
 Each sub-env is `ResetToState(gymnasium.make(env_id, **env_kwargs))` (an external task's:
 `lava_bridge_mj.external.make_task_env(env_id)`, with its "p0" and "ood") without gymnasium's TimeLimit: the

@@ -90,8 +90,8 @@ def write_metric_runs(root, method, p0_by_seed, demos=500, ood=None, **config):
     changed by `config`. For tests of what the report makes of given numbers."""
     import json
 
-    from lava_bridge_mj.eval.config import RunConfig
-    from lava_bridge_mj.eval.run_files import METRIC_FIELDS
+    from lava_bridge_mj.eval.training.config import RunConfig
+    from lava_bridge_mj.eval.training.run_files import METRIC_FIELDS
 
     for seed, p0 in p0_by_seed.items():
         directory = root / f"{method}-{demos}-{len(config)}" / f"seed{seed}"
@@ -108,14 +108,14 @@ def write_metric_runs(root, method, p0_by_seed, demos=500, ood=None, **config):
 
 def groups_in(root):
     """The groups of the runs under `root`, as the report forms them."""
-    from lava_bridge_mj.eval import aggregate
+    from lava_bridge_mj.eval.analysis import aggregate
 
     return aggregate.group_runs(aggregate.find_runs(root))
 
 
 def episode_rows(run_dir):
     """A run's episode log as csv.DictReader rows, read as the report reads it (compressed or plain)."""
-    from lava_bridge_mj.eval import run_files
+    from lava_bridge_mj.eval.training import run_files
 
     return list(csv.DictReader(io.StringIO(run_files.read_episode_log(run_files.episode_log_file(run_dir)).decode())))
 

@@ -18,7 +18,7 @@ from lava_bridge_mj.agents.jsrl import JSRLConfig
 from lava_bridge_mj.agents.offline import BC, IQL, BCConfig, IQLConfig
 from lava_bridge_mj.agents.replay_buffer import FIELDS, ReplayBuffer
 from lava_bridge_mj.agents.sac import SAC, SACConfig
-from lava_bridge_mj.eval.runner import RunConfig
+from lava_bridge_mj.eval.training.runner import RunConfig
 
 INF, NAN = float("inf"), float("nan")
 

@@ -1,4 +1,4 @@
-"""Batched evaluation (eval/evaluate.py) against the per-seed loop it replaced: every member of a
+"""Batched evaluation (eval/training/evaluate.py) against the per-seed loop it replaced: every member of a
 seed-batched agent evaluated on its own, one single env per episode, stepped one by one."""
 
 import subprocess
@@ -11,10 +11,10 @@ import torch
 
 import lava_bridge_mj
 from lava_bridge_mj.agents.sac import SACConfig
-from lava_bridge_mj.eval import evaluate as evaluate_module
-from lava_bridge_mj.eval.config import RunConfig
-from lava_bridge_mj.eval.evaluate import EVAL_SEED, OWN_CALL_ROWS, evaluate
-from lava_bridge_mj.eval.runner import make_agent
+from lava_bridge_mj.eval.training import evaluate as evaluate_module
+from lava_bridge_mj.eval.training.config import RunConfig
+from lava_bridge_mj.eval.training.evaluate import EVAL_SEED, OWN_CALL_ROWS, evaluate
+from lava_bridge_mj.eval.training.runner import make_agent
 from lava_bridge_mj.vector import LavaBridgeVectorEnv
 
 ENV = {"step_reward": -0.01, "lava_reward": -1.0}

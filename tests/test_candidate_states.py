@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import lava_bridge_mj
-from lava_bridge_mj.eval.config import RunConfig
-from lava_bridge_mj.eval.seed_run import candidate_states as run_candidates
+from lava_bridge_mj.eval.training.config import RunConfig
+from lava_bridge_mj.eval.training.seed_run import candidate_states as run_candidates
 
 RESULTS = Path(__file__).resolve().parents[1] / "results"
 # Runs the trainer wrote before the subset had a public function; their start_weights.npz holds the

@@ -17,9 +17,10 @@ from lava_bridge_mj.agents.networks import TanhGaussianActor, TwinQ
 from lava_bridge_mj.agents.offline import BC, IQL
 from lava_bridge_mj.agents.sac import SAC
 from lava_bridge_mj.agents.seed_batch import stack_batches
-from lava_bridge_mj.eval import cli, sweep_jobs
-from lava_bridge_mj.eval.config import RunConfig
-from lava_bridge_mj.eval.run_files import EPISODE_LOG, load_torch, save_torch
+from lava_bridge_mj.eval import cli
+from lava_bridge_mj.eval.sweeps import sweep_jobs
+from lava_bridge_mj.eval.training.config import RunConfig
+from lava_bridge_mj.eval.training.run_files import EPISODE_LOG, load_torch, save_torch
 
 
 
@@ -117,7 +118,7 @@ def test_a_sweep_job_trains_on_its_specs_device(tmp_path, monkeypatch):
         asked.update(options)
         return Trained()
 
-    monkeypatch.setattr("lava_bridge_mj.eval.runner.train", fake_train)
+    monkeypatch.setattr("lava_bridge_mj.eval.training.runner.train", fake_train)
     spec = sweep_jobs.Job("sac", 500, (0,)).spec(RunConfig(method="sac"), tmp_path, 1, "cuda:1")
     assert json.loads(json.dumps(spec))["device"] == "cuda:1"
     assert sweep_jobs.run_spec(spec)["status"] == "done"

@@ -1,4 +1,4 @@
-"""The generated parts of the documentation (eval/doc_tables.py): each render function on hand-built inputs
+"""The generated parts of the documentation (eval/analysis/doc_tables.py): each render function on hand-built inputs
 against hand-written tables, the mechanism that rewrites a part between its markers, and the committed
 documents equal to what the committed data gives."""
 
@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from lava_bridge_mj.eval import doc_tables
+from lava_bridge_mj.eval.analysis import doc_tables
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -18,7 +18,7 @@ def test_every_generated_part_in_the_committed_documents_is_what_the_committed_d
     names = set()
     for document in doc_tables.DOCUMENTS:
         text = (ROOT / document).read_text()
-        assert doc_tables.fill(text) == text, f"{document} is stale: run `python -m lava_bridge_mj.eval.doc_tables`"
+        assert doc_tables.fill(text) == text, f"{document} is stale: run `python -m lava_bridge_mj.eval.analysis.doc_tables`"
         names |= set(re.findall(r"<!-- generated: ([a-z-]+) -->", text))
     assert names == set(doc_tables.PARTS), "every part is used in a document, and only known parts are"
     assert doc_tables.main(["--check"]) == 0

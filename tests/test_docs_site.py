@@ -105,8 +105,8 @@ def test_the_api_reference_renders_the_start_strategies_from_their_docstrings(si
 
 def test_the_api_reference_renders_training_and_the_environment(site):
     training = rendered(f"{site}/api/training.html")
-    for path in ("lava_bridge_mj.eval.config.RunConfig", "lava_bridge_mj.eval.runner.train",
-                 "lava_bridge_mj.eval.runner.Run"):
+    for path in ("lava_bridge_mj.eval.training.config.RunConfig", "lava_bridge_mj.eval.training.runner.train",
+                 "lava_bridge_mj.eval.training.runner.Run"):
         assert f'id="{path}"' in training, f"no API entry for {path}"
     assert "Train config into out_dir and return the finished Run." in text_of(training)
     environment = rendered(f"{site}/api/environment.html")

@@ -1,5 +1,5 @@
 """The episode log stored compressed: a deterministic gzip writer, one reader for both forms, the
-in-place conversion of plain logs (eval/compress.py), a resumed run from a plain log, and reports
+in-place conversion of plain logs (eval/training/compress.py), a resumed run from a plain log, and reports
 that read the same from either form."""
 
 import gzip
@@ -11,10 +11,11 @@ import pytest
 from conftest import interrupted_copy
 from test_runner import tiny_config, trained  # noqa: F401 (trained: the module's fixture, shared)
 
-from lava_bridge_mj.eval import cli, compress, run_files
-from lava_bridge_mj.eval.run_files import EPISODE_LOG, PLAIN_EPISODE_LOG
-from lava_bridge_mj.eval.runner import train
-from lava_bridge_mj.eval.summary import EPISODE_COLUMNS, read_csv
+from lava_bridge_mj.eval import cli
+from lava_bridge_mj.eval.training import compress, run_files
+from lava_bridge_mj.eval.training.run_files import EPISODE_LOG, PLAIN_EPISODE_LOG
+from lava_bridge_mj.eval.training.runner import train
+from lava_bridge_mj.eval.analysis.summary import EPISODE_COLUMNS, read_csv
 
 ROOT = Path(__file__).resolve().parent.parent
 ROWS = [(1, 8, 141, 0.8869671685798248, -3.16e-10, 8, 0, 0.0), (2, 29, -1, 3.17, 0.5385, 21, 1, 1.0)]

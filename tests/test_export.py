@@ -8,11 +8,12 @@ import pytest
 
 from conftest import interrupted_copy
 from lava_bridge_mj.agents.configs import SACConfig
-from lava_bridge_mj.eval import cli, run_files
-from lava_bridge_mj.eval.config import RunConfig
-from lava_bridge_mj.eval.export import CHECKSUMS, COMPACT_FILES, main
-from lava_bridge_mj.eval.run_files import EPISODE_LOG, PLAIN_EPISODE_LOG
-from lava_bridge_mj.eval.runner import train
+from lava_bridge_mj.eval import cli
+from lava_bridge_mj.eval.training import run_files
+from lava_bridge_mj.eval.training.config import RunConfig
+from lava_bridge_mj.eval.sweeps.export import CHECKSUMS, COMPACT_FILES, main
+from lava_bridge_mj.eval.training.run_files import EPISODE_LOG, PLAIN_EPISODE_LOG
+from lava_bridge_mj.eval.training.runner import train
 
 TINY = dict(method="auxss", steps=300, eval_every=100, eval_episodes=2, demo_subset=20,
             sac=SACConfig(hidden_sizes=(16, 16), batch_size=32, learning_starts=50))
@@ -119,7 +120,7 @@ def test_bad_directories_are_refused_with_a_usage_line_and_nothing_written(runs,
 
 
 def test_a_copy_carries_the_metrics_checksum_and_verifies(runs, tmp_path):
-    from lava_bridge_mj.eval.summary import read_metrics
+    from lava_bridge_mj.eval.analysis.summary import read_metrics
 
     results = tmp_path / "results"
     assert main([str(runs), str(results)]) == 0

@@ -1,6 +1,6 @@
-"""The findings' verdicts (eval/findings.py) and the claims they are made of (eval/claims.py) on small hand-built
+"""The findings' verdicts (eval/analysis/findings.py) and the claims they are made of (eval/analysis/claims.py) on small hand-built
 Fisher's p for all against none of n seeds is 2 / C(2n, n); the power and seeds needed come from
-eval/statistics.py's exact power function at the rates a 0.3 difference implies around the pooled rate."""
+eval/analysis/statistics.py's exact power function at the rates a 0.3 difference implies around the pooled rate."""
 
 import math
 
@@ -9,9 +9,9 @@ from conftest import groups_in, write_metric_runs
 
 pytest.importorskip("rliable", reason="the tests use rliable's probability of improvement: pip install -e '.[plots]'")
 
-from lava_bridge_mj.eval import aggregate, claims, findings  # noqa: E402
-from lava_bridge_mj.eval import statistics as stats  # noqa: E402
-from lava_bridge_mj.eval.report_tables import findings_section  # noqa: E402
+from lava_bridge_mj.eval.analysis import aggregate, claims, findings  # noqa: E402
+from lava_bridge_mj.eval.analysis import statistics as stats  # noqa: E402
+from lava_bridge_mj.eval.analysis.report_tables import findings_section  # noqa: E402
 
 
 def two_groups(tmp_path, a, b):

@@ -19,7 +19,7 @@ import lava_bridge_mj
 from lava_bridge_mj import RunConfig, ResetToState, load_demos, record_demos, save_demos, train
 from lava_bridge_mj.agents.methods import METHODS
 from lava_bridge_mj.eval.cli import main as cli_main
-from lava_bridge_mj.eval.run_files import EPISODE_LOG, RunDirectoryError
+from lava_bridge_mj.eval.training.run_files import EPISODE_LOG, RunDirectoryError
 from lava_bridge_mj.state_vector import ResetToStateVectorEnv
 from lava_bridge_mj.task_states import TaskStates
 

@@ -5,7 +5,7 @@ import pytest
 from conftest import interrupted_copy, metrics_without_wall_time
 
 from lava_bridge_mj.agents.jsrl import JSRLConfig, JSRLCurriculum
-from lava_bridge_mj.eval.runner import Run, RunConfig, train
+from lava_bridge_mj.eval.training.runner import Run, RunConfig, train
 
 
 def test_curriculum_horizons_and_advancement_by_hand():

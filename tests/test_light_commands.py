@@ -27,8 +27,8 @@ def test_help_and_report_do_not_import_torch(argv):
 
 
 def test_the_configuration_layer_imports_no_learner():
-    code = ("import sys; from lava_bridge_mj.eval.config import RunConfig; RunConfig(method='iql'); "
-            "import lava_bridge_mj.eval.run_files, lava_bridge_mj.eval.arguments, lava_bridge_mj.agents.methods; "
+    code = ("import sys; from lava_bridge_mj.eval.training.config import RunConfig; RunConfig(method='iql'); "
+            "import lava_bridge_mj.eval.training.run_files, lava_bridge_mj.eval.arguments, lava_bridge_mj.agents.methods; "
             "print('torch' in sys.modules)")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert result.stdout.strip() == "False", result.stdout + result.stderr
@@ -37,7 +37,7 @@ def test_the_configuration_layer_imports_no_learner():
 def test_the_package_api_loads_torch_only_when_training_is_asked_for():
     code = ("import sys, lava_bridge_mj; config = lava_bridge_mj.RunConfig(method='omega_ss'); "
             "print('torch' in sys.modules); "
-            "from lava_bridge_mj.eval import runner; "
+            "from lava_bridge_mj.eval.training import runner; "
             "print(lava_bridge_mj.train is runner.train, lava_bridge_mj.RunConfig is type(config))")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert result.stdout.split() == ["False", "True", "True"], result.stdout + result.stderr

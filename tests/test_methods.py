@@ -8,7 +8,7 @@ import pytest
 from lava_bridge_mj.agents.methods import LEARNERS, METHODS, Method
 from lava_bridge_mj.agents.start_strategies import STRATEGY_NAMES
 from lava_bridge_mj.eval import cli
-from lava_bridge_mj.eval.config import RunConfig
+from lava_bridge_mj.eval.training.config import RunConfig
 
 
 def test_every_method_names_what_exists():

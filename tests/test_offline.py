@@ -7,7 +7,7 @@ import torch
 import lava_bridge_mj
 from lava_bridge_mj.agents.offline import BC, IQL, BCConfig, IQLConfig, expectile_loss
 from lava_bridge_mj.agents.seed_batch import stack_batches
-from lava_bridge_mj.eval.runner import RunConfig, demo_buffer, train
+from lava_bridge_mj.eval.training.runner import RunConfig, demo_buffer, train
 
 
 from conftest import interrupted_copy, metrics_without_wall_time

@@ -490,7 +490,7 @@ def flip_compression_method(path, mask=0x01):
 
 
 def test_a_tensor_torch_leaves_unfilled_is_caught_by_the_content_digest(reference_run, tmp_path):
-    from lava_bridge_mj.eval.run_files import DamagedFileError, load_torch
+    from lava_bridge_mj.eval.training.run_files import DamagedFileError, load_torch
 
     path = shutil.copy(reference_run / "checkpoint.pt", tmp_path / "checkpoint.pt")
     load_torch(path)  # intact: its digest matches
@@ -503,7 +503,7 @@ def test_a_tensor_torch_leaves_unfilled_is_caught_by_the_content_digest(referenc
 
 @pytest.mark.parametrize("mask, raised_by_zipfile", [(0x01, "NotImplementedError"), (0x08, "zlib.error")])
 def test_a_checkpoint_that_fails_to_decompress_is_damaged_not_a_crash(reference_run, tmp_path, mask, raised_by_zipfile):
-    from lava_bridge_mj.eval.run_files import DamagedFileError, load_torch
+    from lava_bridge_mj.eval.training.run_files import DamagedFileError, load_torch
 
     path = shutil.copy(reference_run / "checkpoint.pt", tmp_path / "checkpoint.pt")
     flip_compression_method(path, mask)
@@ -579,7 +579,7 @@ def test_a_kill_between_rotating_and_writing_a_checkpoint_leaves_a_real_fallback
     """Killed as the third checkpoint (step 750) is about to take its name: checkpoint.prev.pt holds step
     500 and is not a second name of checkpoint.pt (a kill there once left one file under both names, and
     step 250 lost); the resume continues from step 500 to the uninterrupted run's end."""
-    from lava_bridge_mj.eval.run_files import checkpoint_step
+    from lava_bridge_mj.eval.training.run_files import checkpoint_step
 
     out = tmp_path / "run"
     replace, writes = os.replace, []
@@ -616,11 +616,11 @@ def running_process(pid):
 def test_the_result_folder_of_a_killed_sweep_is_removed_by_the_next(config_file, tmp_path, monkeypatch):
     """SIGKILL of a sweep's own process leaves its folder of job results in the temporary directory; the
     next sweep removes it, and leaves the folder of a sweep still running (this process) alone."""
-    from lava_bridge_mj.eval import sweep_jobs
+    from lava_bridge_mj.eval.sweeps import sweep_jobs
 
     temp = tmp_path / "tmp"
     temp.mkdir()
-    argv = [sys.executable, "-m", "lava_bridge_mj.eval.sweep", "--methods", "sac", "--seeds", "0", "--steps", "1500",
+    argv = [sys.executable, "-m", "lava_bridge_mj.eval.sweeps.sweep", "--methods", "sac", "--seeds", "0", "--steps", "1500",
             "--config", str(config_file), "--out", str(tmp_path / "out"), "--workers", "1"]
     sweep = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                              env={**os.environ, "TMPDIR": str(temp)})
@@ -645,7 +645,7 @@ def test_a_changed_metrics_csv_is_refused_by_the_reports_in_one_line(reference_r
     """The red team's edit: an evaluation's success_p0 raised from 0.0 to 0.9. report and summary refuse
     it naming the file, export refuses to copy it; the run as written, and one without a checksum file
     (written before checksums were kept, as the committed results/), read as before."""
-    from lava_bridge_mj.eval import summary
+    from lava_bridge_mj.eval.analysis import summary
 
     out = copy_of(reference_run, tmp_path)
     assert summary.main([str(out)]) == 0
@@ -672,7 +672,7 @@ def test_a_changed_metrics_csv_is_refused_by_the_reports_in_one_line(reference_r
 def test_a_kill_between_the_checksum_and_the_metrics_write_leaves_a_file_that_verifies(tmp_path, monkeypatch):
     """The checksum file goes first and lists the version it replaces too: a kill before metrics.csv is
     replaced leaves the earlier, whole metrics.csv, which still verifies; a changed one never does."""
-    from lava_bridge_mj.eval import checksums
+    from lava_bridge_mj.eval.training import checksums
 
     path = tmp_path / "metrics.csv"
     checksums.write_checked(path, b"step\n250\n")
@@ -697,9 +697,9 @@ def test_a_kill_between_the_checksum_and_the_metrics_write_leaves_a_file_that_ve
 
 # --- messages ---------------------------------------------------------------------------------------------
 def test_a_run_directory_refused_in_python_names_the_keywords_that_continue_it(reference_run, tmp_path):
-    from lava_bridge_mj.eval.config import RunConfig
-    from lava_bridge_mj.eval.run_files import RunDirectoryError
-    from lava_bridge_mj.eval.runner import train
+    from lava_bridge_mj.eval.training.config import RunConfig
+    from lava_bridge_mj.eval.training.run_files import RunDirectoryError
+    from lava_bridge_mj.eval.training.runner import train
 
     out = copy_of(reference_run, tmp_path)
     with pytest.raises(RunDirectoryError, match=r"already holds a run .*resume=True.*overwrite=True"):

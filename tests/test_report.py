@@ -20,9 +20,10 @@ pytest.importorskip("rliable", reason="the report needs the plots extra: pip ins
 from conftest import read_only  # noqa: E402
 from rliable import metrics as rliable_metrics  # noqa: E402
 
-from lava_bridge_mj.eval import aggregate, cli, report, report_figures, report_groups  # noqa: E402
-from lava_bridge_mj.eval.config import METHODS, RunConfig  # noqa: E402
-from lava_bridge_mj.eval.run_files import EPISODE_FIELDS, METRIC_FIELDS  # noqa: E402
+from lava_bridge_mj.eval import cli  # noqa: E402
+from lava_bridge_mj.eval.analysis import aggregate, report, report_figures, report_groups  # noqa: E402
+from lava_bridge_mj.eval.training.config import METHODS, RunConfig  # noqa: E402
+from lava_bridge_mj.eval.training.run_files import EPISODE_FIELDS, METRIC_FIELDS  # noqa: E402
 
 BASE_CONFIG = RunConfig().to_dict()
 
@@ -523,7 +524,7 @@ def test_cli_dispatches_report_and_its_help_names_the_subcommands(tmp_path, caps
     help_text = capsys.readouterr().out
     for name in ("train", "sweep", "report", "video", "summary"):  # the commands list, one line each
         assert re.search(r"^  %s +\w" % name, help_text, re.M), help_text
-    result = subprocess.run([sys.executable, "-m", "lava_bridge_mj.eval.report", "--help"],
+    result = subprocess.run([sys.executable, "-m", "lava_bridge_mj.eval.analysis.report", "--help"],
                             capture_output=True, text=True)
     assert result.returncode == 0 and "--out" in result.stdout
 
@@ -623,7 +624,7 @@ def test_an_unfinished_seed_with_no_episode_from_its_last_starts_is_counted_not_
 
 def fail_on_write(monkeypatch, name, error):
     """Make the atomic write of file `name` raise `error` after writing half of it, as a full disk does."""
-    from lava_bridge_mj.eval import atomic
+    from lava_bridge_mj.eval.training import atomic
 
     real = atomic.atomic_write
 
@@ -788,7 +789,7 @@ def test_the_maze_figure_of_a_task_draws_its_own_layout(tmp_path):
 
 
 def test_the_pairwise_section_of_a_single_group_says_only_that_there_is_nothing_to_compare(tmp_path):
-    from lava_bridge_mj.eval.report_tables import pairwise_section
+    from lava_bridge_mj.eval.analysis.report_tables import pairwise_section
 
     for seed in range(3):
         write_run(tmp_path / f"seed{seed}", seed=seed, p0=(0.0, 0.9))

@@ -14,9 +14,9 @@ from conftest import makefile_commands, makefile_sweeps
 
 pytest.importorskip("rliable", reason="the report needs the plots extra: pip install -e '.[plots]'")
 
-from lava_bridge_mj.eval import doc_tables, report  # noqa: E402
-from lava_bridge_mj.eval import statistics as stats  # noqa: E402
-from lava_bridge_mj.eval.claims import NO_DIFFERENCE, UNDECIDED  # noqa: E402
+from lava_bridge_mj.eval.analysis import doc_tables, report  # noqa: E402
+from lava_bridge_mj.eval.analysis import statistics as stats  # noqa: E402
+from lava_bridge_mj.eval.analysis.claims import NO_DIFFERENCE, UNDECIDED  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -190,8 +190,8 @@ def study_looks():
 def first_look():
     """(task, question) -> its answers at the study's first look: results/study read at the study's seeds,
     every verdict checked at the two-look level of the study report's --looks."""
-    from lava_bridge_mj.eval.aggregate import find_runs, group_runs
-    from lava_bridge_mj.eval.study import answer_questions
+    from lava_bridge_mj.eval.analysis.aggregate import find_runs, group_runs
+    from lava_bridge_mj.eval.analysis.study import answer_questions
 
     first, last = study_seed_range()
     groups = group_runs(find_runs(ROOT / "results/study", seeds=range(first, last + 1)))

@@ -13,8 +13,8 @@ from test_runner import resume_from_mid_episode_checkpoint, tiny_config
 
 from lava_bridge_mj.agents.reverse_curriculum import ReverseCurriculumSS, goal_reaching_demos
 from lava_bridge_mj.eval import cli
-from lava_bridge_mj.eval.config import RunConfig
-from lava_bridge_mj.eval.runner import train
+from lava_bridge_mj.eval.training.config import RunConfig
+from lava_bridge_mj.eval.training.runner import train
 
 
 @pytest.fixture(scope="module")

@@ -18,7 +18,7 @@ from lava_bridge_mj.agents import NO_STATE, RFCLReverseSS, RFCLSS, StartStateWra
 from lava_bridge_mj.agents.reverse_curriculum import goal_reaching_demos
 from lava_bridge_mj.agents.strategy_registry import make_start_strategy
 from lava_bridge_mj.eval import cli
-from lava_bridge_mj.eval.runner import train
+from lava_bridge_mj.eval.training.runner import train
 
 
 def two_demos():
@@ -242,15 +242,15 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def reverse_question(groups):
-    from lava_bridge_mj.eval import study
+    from lava_bridge_mj.eval.analysis import study
 
     return next(q for q in study.answer_questions(groups) if q.short == "AuxSS against the reverse curriculum")
 
 
 def test_without_rfcl_runs_the_study_answers_are_the_committed_ones():
     pytest.importorskip("rliable")
-    from lava_bridge_mj.eval.aggregate import find_runs, group_runs
-    from lava_bridge_mj.eval.study import answer_questions, answers_record
+    from lava_bridge_mj.eval.analysis.aggregate import find_runs, group_runs
+    from lava_bridge_mj.eval.analysis.study import answer_questions, answers_record
 
     report = next(argv for argv in makefile_commands("report", "report") if argv[-1] == "docs/report_study")
     first, last = map(int, report[report.index("--seeds") + 1].split("-"))

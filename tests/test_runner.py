@@ -17,11 +17,11 @@ from conftest import episode_rows, flip_a_data_bit, interrupted_copy, metrics_wi
 from lava_bridge_mj.agents.sac import SACConfig
 from lava_bridge_mj.agents.goaldist_ss import GoalDistSS
 from lava_bridge_mj.eval import cli
-from lava_bridge_mj.eval.provenance import git_state, processor
+from lava_bridge_mj.eval.training.provenance import git_state, processor
 from lava_bridge_mj.agents.methods import METHODS as METHOD_SPECS
-from lava_bridge_mj.eval.config import METHODS, RunConfig
-from lava_bridge_mj.eval.run_files import EPISODE_FIELDS, EPISODE_LOG, METRIC_FIELDS, RunDirectoryError, run_status, save_torch
-from lava_bridge_mj.eval.runner import Run, train
+from lava_bridge_mj.eval.training.config import METHODS, RunConfig
+from lava_bridge_mj.eval.training.run_files import EPISODE_FIELDS, EPISODE_LOG, METRIC_FIELDS, RunDirectoryError, run_status, save_torch
+from lava_bridge_mj.eval.training.runner import Run, train
 
 TINY_SAC = SACConfig(hidden_sizes=(16, 16), batch_size=32, buffer_size=500, learning_starts=100)
 
@@ -547,7 +547,7 @@ def test_an_unwritable_run_directory_is_one_line_and_exit_2(capsys):
 
 
 def test_a_bit_flip_in_a_checkpoint_or_snapshot_is_detected(finished_run, tmp_path):
-    from lava_bridge_mj.eval.run_files import DamagedFileError, load_torch
+    from lava_bridge_mj.eval.training.run_files import DamagedFileError, load_torch
 
     out = copy_run(finished_run, tmp_path / "run")
     for path in (out / "checkpoint.pt", out / "policies" / "step_300.pt"):

@@ -23,7 +23,7 @@ from lava_bridge_mj.agents.start_strategies import (
     StrategyContext,
     make_start_strategy,
 )
-from lava_bridge_mj.eval.config import RunConfig
+from lava_bridge_mj.eval.training.config import RunConfig
 from lava_bridge_mj.task_states import TaskStates
 
 # Three states for hand computation: S1 is 0.3 m from S0 in x, S2 differs from S0 only in vy (0.6 m/s).
@@ -341,7 +341,7 @@ def test_a_run_supplies_its_steps_as_the_budget_of_goaldist_budget_schedule():
 
 
 def test_a_budget_tied_run_cannot_be_extended_to_more_steps(tmp_path):
-    from lava_bridge_mj.eval.run_files import RunDirectoryError, check_run_directory, write_config
+    from lava_bridge_mj.eval.training.run_files import RunDirectoryError, check_run_directory, write_config
 
     tied = RunConfig(method="goaldist_ss", steps=2000, strategy={"schedule": "budget"})
     write_config(tmp_path, tied.to_dict())

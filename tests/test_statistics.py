@@ -1,4 +1,4 @@
-"""eval/statistics.py against hand-computed and published values and scipy, and the report's tables
+"""eval/analysis/statistics.py against hand-computed and published values and scipy, and the report's tables
 built from it on a tiny synthetic results tree."""
 
 import itertools
@@ -12,8 +12,8 @@ pytest.importorskip("rliable", reason="the report needs the plots extra: pip ins
 
 from test_report import write_run  # noqa: E402
 
-from lava_bridge_mj.eval import report  # noqa: E402
-from lava_bridge_mj.eval import statistics as stats  # noqa: E402
+from lava_bridge_mj.eval.analysis import report  # noqa: E402
+from lava_bridge_mj.eval.analysis import statistics as stats  # noqa: E402
 
 INF = math.inf
 

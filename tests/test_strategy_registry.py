@@ -25,7 +25,7 @@ from lava_bridge_mj.agents.strategy_registry import (
     strategy_parameters,
 )
 from lava_bridge_mj.eval import cli
-from lava_bridge_mj.eval.config import RunConfig
+from lava_bridge_mj.eval.training.config import RunConfig
 from lava_bridge_mj.task_states import TaskStates, coordinate_spread, task_states_of
 
 DIM = 12

@@ -1,4 +1,4 @@
-"""The study's questions (eval/study.py) on small hand-built groups whose tests are computed by hand:
+"""The study's questions (eval/analysis/study.py) on small hand-built groups whose tests are computed by hand:
 Fisher's p for all against none of n seeds is 2 / C(2n, n), and so is the exact p of the rank and
 permutation tests (2 of the C(2n, n) splits put all the 1s on one side), and Holm's correction
 multiplies the k-th smallest of m p-values by m - k + 1."""
@@ -10,8 +10,8 @@ from conftest import groups_in, write_metric_runs
 
 pytest.importorskip("rliable", reason="the tests use rliable's probability of improvement: pip install -e '.[plots]'")
 
-from lava_bridge_mj.eval import study  # noqa: E402
-from lava_bridge_mj.eval.report_tables import study_overview, study_section  # noqa: E402
+from lava_bridge_mj.eval.analysis import study  # noqa: E402
+from lava_bridge_mj.eval.analysis.report_tables import study_overview, study_section  # noqa: E402
 
 SOLVED = {seed: [0.0, 1.0] for seed in range(10)}
 """Ten seeds at success 1.0 from p0 and ood from step 2,000: all reach 0.8 and all are robust."""

@@ -5,8 +5,8 @@ import csv
 import numpy as np
 import pytest
 
-from lava_bridge_mj.eval import summary
-from lava_bridge_mj.eval.run_files import EPISODE_FIELDS, METRIC_FIELDS
+from lava_bridge_mj.eval.analysis import summary
+from lava_bridge_mj.eval.training.run_files import EPISODE_FIELDS, METRIC_FIELDS
 
 
 def write_run(directory, p0, ood):

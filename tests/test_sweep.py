@@ -16,13 +16,14 @@ import pytest
 
 from conftest import metrics_without_wall_time
 import lava_bridge_mj
-from lava_bridge_mj.eval import arguments, cli, sweep, sweep_jobs, sweep_ray
+from lava_bridge_mj.eval import arguments, cli
+from lava_bridge_mj.eval.sweeps import sweep, sweep_jobs, sweep_ray
 from lava_bridge_mj.eval.arguments import format_seeds
-from lava_bridge_mj.eval.config import RunConfig
-from lava_bridge_mj.eval.run_files import checkpoint_step, run_status, save_torch, write_config
-from lava_bridge_mj.eval.sweep import plan
-from lava_bridge_mj.eval.sweep_jobs import Job, progress_line
-from lava_bridge_mj.eval.tracking import ProgressReport
+from lava_bridge_mj.eval.training.config import RunConfig
+from lava_bridge_mj.eval.training.run_files import checkpoint_step, run_status, save_torch, write_config
+from lava_bridge_mj.eval.sweeps.sweep import plan
+from lava_bridge_mj.eval.sweeps.sweep_jobs import Job, progress_line
+from lava_bridge_mj.eval.training.tracking import ProgressReport
 
 TINY = {"sac": {"hidden_sizes": [16, 16], "batch_size": 32, "buffer_size": 500, "learning_starts": 100},
         "bc": {"hidden_sizes": [16, 16], "batch_size": 32}}
@@ -290,7 +291,7 @@ def test_a_job_killed_after_its_last_write_is_recorded_done(finished, config_fil
 def test_without_prctl_a_job_still_dies_with_its_parent(tmp_path):
     """die_with_parent's fallback (polling os.getppid(), for systems without PR_SET_PDEATHSIG): a
     grandchild whose parent is SIGKILLed gets SIGTERM."""
-    grandchild = ("import os, sys, time; from lava_bridge_mj.eval.sweep_jobs import die_with_parent; "
+    grandchild = ("import os, sys, time; from lava_bridge_mj.eval.sweeps.sweep_jobs import die_with_parent; "
                   "die_with_parent(os.getppid(), poll_interval=0.05, use_prctl=False); print('armed', flush=True); "
                   "time.sleep(120)")
     parent = ("import subprocess, sys, time; child = subprocess.Popen([sys.executable, '-c', sys.argv[1]], "
@@ -376,7 +377,7 @@ def test_a_worker_that_dies_without_a_result_fails_only_its_job(config_file, tmp
 def test_ctrl_c_stops_the_jobs_after_a_checkpoint_and_the_rerun_says_where_it_resumes(config_file, tmp_path, capsys):
     out = tmp_path / "out"
     # started as a script's background job is (`cmd &`): SIGINT inherited ignored; the sweep must still stop on it
-    process = subprocess.Popen([sys.executable, "-m", "lava_bridge_mj.eval.sweep",
+    process = subprocess.Popen([sys.executable, "-m", "lava_bridge_mj.eval.sweeps.sweep",
                                 *tiny_argv(out, config_file, "sac", "0", 100_000)],
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
@@ -421,7 +422,7 @@ def test_an_unreachable_ray_address_fails_at_once_with_one_line(config_file, tmp
     out = tmp_path / "out"
     started = time.monotonic()
     try:  # ray.init alone retries for many minutes
-        done = subprocess.run([sys.executable, "-m", "lava_bridge_mj.eval.sweep",
+        done = subprocess.run([sys.executable, "-m", "lava_bridge_mj.eval.sweeps.sweep",
                                *tiny_argv(out, config_file, "sac", "0", 300, "--backend", "ray", "--address",
                                           "127.0.0.1:1")], capture_output=True, text=True, timeout=120)
     except subprocess.TimeoutExpired:
@@ -561,7 +562,7 @@ def test_a_sweep_killed_with_sigkill_resumes_to_the_uninterrupted_numbers(config
     command: every run finishes with the metrics of an uninterrupted sweep."""
     out = tmp_path / "out"
     argv = kill_argv(out, config_file, workers=1)
-    process = subprocess.Popen([sys.executable, "-m", "lava_bridge_mj.eval.sweep", *argv],
+    process = subprocess.Popen([sys.executable, "-m", "lava_bridge_mj.eval.sweeps.sweep", *argv],
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     started = next(line for line in process.stdout if "(pid " in line)
     job_pid = int(started.rsplit("(pid ", 1)[1].rstrip(")\n"))
@@ -590,7 +591,7 @@ def test_jobs_die_with_a_sweep_killed_alone_and_the_rerun_finishes_them(config_f
     resumes both to the uninterrupted numbers, recorded as done."""
     out = tmp_path / "out"
     argv = kill_argv(out, config_file, workers=2)
-    process = subprocess.Popen([sys.executable, "-m", "lava_bridge_mj.eval.sweep", *argv],
+    process = subprocess.Popen([sys.executable, "-m", "lava_bridge_mj.eval.sweeps.sweep", *argv],
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     pids = []
     for line in process.stdout:

@@ -21,7 +21,7 @@ import lava_bridge_mj
 from lava_bridge_mj import (TASKS, Layout, LavaBridgeEnv, LavaBridgeVectorEnv, ScriptedExpert, load_demos, pictures,
                             task_layout)
 from lava_bridge_mj.demos import MANIFEST, SHIPPED_SEEDS, SHIPPED_SIZES, content_hash, demo_file, generate_demos
-from lava_bridge_mj.eval import report_groups
+from lava_bridge_mj.eval.analysis import report_groups
 from lava_bridge_mj.layout import Box2D, _uncovered
 from lava_bridge_mj.mjcf import VIEW_ASPECT
 from lava_bridge_mj.tasks import TASK_DOCS, placed_layout

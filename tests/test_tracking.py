@@ -1,4 +1,4 @@
-"""Live tracking sinks (eval/tracking.py): TensorBoard and W&B receive training scalars under SB3's
+"""Live tracking sinks (eval/training/tracking.py): TensorBoard and W&B receive training scalars under SB3's
 names while training and what each evaluation measures, a resume appends to the same record (no step
 twice), --overwrite removes it with the run, logging leaves training's results unchanged, W&B's
 project, entity, group and name come from the options over the WANDB_* variables over the defaults,
@@ -16,16 +16,17 @@ import numpy as np
 import pytest
 
 from conftest import episode_rows
-from lava_bridge_mj.eval import cli, tracking
-from lava_bridge_mj.eval.config import RunConfig
-from lava_bridge_mj.eval.run_files import EPISODE_LOG, RunDirectoryError, run_files
+from lava_bridge_mj.eval import cli
+from lava_bridge_mj.eval.training import tracking
+from lava_bridge_mj.eval.training.config import RunConfig
+from lava_bridge_mj.eval.training.run_files import EPISODE_LOG, RunDirectoryError, run_files
 
 TINY = dict(steps=200, eval_every=100, eval_episodes=2, sac={"hidden_sizes": [8, 8], "learning_starts": 50,
                                                                "batch_size": 16})
 
 
 def train(out, steps=200, env=None, **kwargs):
-    from lava_bridge_mj.eval.runner import train as run_train
+    from lava_bridge_mj.eval.training.runner import train as run_train
 
     config = RunConfig(method="auxss", **{**TINY, "steps": steps, "env": env or {}})
     return run_train(config, out, progress=False, **kwargs)

@@ -111,7 +111,7 @@ def tiny_run(tmp_path_factory):
     """A real SAC run of 300 steps (updates from step 100, snapshots at 150 and 300) and its Run,
     trained with the session's one torch thread (conftest.one_torch_thread)."""
     from lava_bridge_mj.agents.sac import SACConfig
-    from lava_bridge_mj.eval.runner import RunConfig, train
+    from lava_bridge_mj.eval.training.runner import RunConfig, train
 
     run_dir = tmp_path_factory.mktemp("tiny") / "sac" / "seed3"
     config = RunConfig(method="sac", seed=3, steps=300, eval_every=150, eval_episodes=1,

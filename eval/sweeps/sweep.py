@@ -33,8 +33,8 @@ A local job also stops that way when the sweep's process dies without asking (SI
 never trains on as an orphan. A rerun that finds a run directory still locked by such a stopping job waits for it (at
 most LOCK_WAIT seconds) instead of failing the job.
 
-This module holds the command and the job plan; eval/sweep_jobs.py runs one job and the local worker
-pool, eval/sweep_ray.py the Ray backend.
+This module holds the command and the job plan; eval/sweeps/sweep_jobs.py runs one job and the local worker
+pool, eval/sweeps/sweep_ray.py the Ray backend.
 """
 
 from __future__ import annotations
@@ -52,10 +52,10 @@ from lava_bridge_mj.eval.arguments import (apply_settings, check_writable, confi
                                            parse_seeds, positive_int, read_config_file, setting, signal_of,
                                            stop_reason, stopping_on_signals, usable_cpus)
 from lava_bridge_mj.demos import MINARI_PREFIX
-from lava_bridge_mj.eval.config import METHODS, RunConfig, check_batch_fits
-from lava_bridge_mj.eval import sweep_ray
-from lava_bridge_mj.eval.run_files import lock_holder
-from lava_bridge_mj.eval.sweep_jobs import Job, SweepRecord, run_local, summary
+from lava_bridge_mj.eval.training.config import METHODS, RunConfig, check_batch_fits
+from lava_bridge_mj.eval.sweeps import sweep_ray
+from lava_bridge_mj.eval.training.run_files import lock_holder
+from lava_bridge_mj.eval.sweeps.sweep_jobs import Job, SweepRecord, run_local, summary
 
 DEMO_SETS = (500, 7500)
 SEEDS_PER_JOB = 25

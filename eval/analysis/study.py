@@ -9,7 +9,7 @@ of one task:
 2. **AuxSS or RFCL's reverse curriculum?** AuxSS against RFCL: one pair, against `rfcl` (RFCL as
    published, its forward stage included) where the task has rfcl runs, else against `reverse_ss`.
 
-Each pair is compared on two aspects, as eval/claims.py compares them (matched seeds, each pair up to
+Each pair is compared on two aspects, as eval/analysis/claims.py compares them (matched seeds, each pair up to
 the last evaluation step both groups have):
 
 - *learns faster*: reaching p0 success 0.8 more often or sooner (Fisher's exact test on the reach
@@ -50,10 +50,10 @@ import collections
 import dataclasses
 import math
 
-from lava_bridge_mj.eval import statistics as stats
-from lava_bridge_mj.eval.aggregate import Group
-from lava_bridge_mj.eval.claims import (CONTRADICTED, NOT_RUN, SUPPORTED, TESTS_PER_COMPARISON, UNDECIDED, Part, pick,
-                                        reach_comparison, robust_comparison, settle)
+from lava_bridge_mj.eval.analysis import statistics as stats
+from lava_bridge_mj.eval.analysis.aggregate import Group
+from lava_bridge_mj.eval.analysis.claims import (CONTRADICTED, NOT_RUN, SUPPORTED, TESTS_PER_COMPARISON, UNDECIDED, Part, pick,
+                                                 reach_comparison, robust_comparison, settle)
 
 SAFETY = ("auxss", "omega_ss")
 """Start distributions derived from how safe a demo state is to start from."""
@@ -83,7 +83,7 @@ class Answer:
     b: str
     aspect: str
     part: Part | None
-    """The tested claim (eval/claims.py); None when a group is not run or the two share no seed."""
+    """The tested claim (eval/analysis/claims.py); None when a group is not run or the two share no seed."""
     effect: stats.RateDifference | None
     """Rate of A minus rate of B of the outcome behind Fisher's test, with its 95% interval."""
     absent: str = NOT_RUN

@@ -19,7 +19,7 @@ under the repository root, and a render function, which turns what the source re
   training time, from each run's config.json, provenance.json and metrics.csv (and, for runs made before
   provenance.json was recorded, the commits results/code_before_provenance.json notes).
 
-`make report` runs `python -m lava_bridge_mj.eval.doc_tables` after the reports; `--check` writes nothing
+`make report` runs `python -m lava_bridge_mj.eval.analysis.doc_tables` after the reports; `--check` writes nothing
 and exits 1 naming each stale document.
 """
 
@@ -37,7 +37,7 @@ from pathlib import Path
 from lava_bridge_mj.eval import statistics
 from lava_bridge_mj.eval.arguments import format_seeds
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 ANSWERS = Path("docs/report_study/answers.json")
 DIFFICULTY = Path("results/suite/difficulty.md")
 SAC_FROM_P0 = Path("results/suite/sac_p0")
@@ -588,7 +588,7 @@ def fill(text: str, root: Path = ROOT) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m lava_bridge_mj.eval.doc_tables", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m lava_bridge_mj.eval.analysis.doc_tables", description=__doc__.split("\n")[0])
     parser.add_argument("--check", action="store_true", help="write nothing; exit 1 if a document is stale")
     args = parser.parse_args(argv)
     stale = []
@@ -600,7 +600,7 @@ def main(argv: list[str] | None = None) -> int:
             if not args.check:
                 (ROOT / document).write_text(filled)
     if args.check and stale:
-        print(f"stale generated parts in {', '.join(stale)}: run `python -m lava_bridge_mj.eval.doc_tables`",
+        print(f"stale generated parts in {', '.join(stale)}: run `python -m lava_bridge_mj.eval.analysis.doc_tables`",
               file=sys.stderr)
         return 1
     return 0

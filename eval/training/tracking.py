@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from lava_bridge_mj.eval.atomic import atomic_write_text
+from lava_bridge_mj.eval.training.atomic import atomic_write_text
 
 SINKS = ("tensorboard", "wandb")
 """The names `--log` accepts."""
@@ -144,7 +144,7 @@ def training_scalars(train: Mapping[str, float], episodes: Sequence[Sequence[flo
     guide horizon) as train/NAME, alpha as train/ent_coef; the rollout/ means (ep_rew_mean, ep_len_mean,
     success_rate) of the last EPISODE_WINDOW of `episodes`, its episodes.csv rows (EPISODE_FIELDS;
     none before an episode ends); `timing` as time/NAME. Non-finite values are left out."""
-    from lava_bridge_mj.eval.run_files import EPISODE_FIELDS
+    from lava_bridge_mj.eval.training.run_files import EPISODE_FIELDS
 
     scalars = {f"train/{TRAIN_NAMES.get(name, name)}": value for name, value in train.items()}
     recent = np.array(episodes[-EPISODE_WINDOW:], dtype=np.float64).reshape(-1, len(EPISODE_FIELDS))

@@ -1,10 +1,10 @@
 """`lava-bridge-bench report DIR [--out OUT]`: the paper's figures and tables from a sweep directory.
 
     lava-bridge-bench report runs/sweep                 # writes runs/sweep/report/
-    python -m lava_bridge_mj.eval.report runs/sweep --out paper_figures
+    python -m lava_bridge_mj.eval.analysis.report runs/sweep --out paper_figures
 
 Runs are found under DIR at any depth by their config.json and metrics.csv and grouped by configuration
-(eval/aggregate.py: task, method and demo set, plus any other setting that differs). OUT receives, each
+(eval/analysis/aggregate.py: task, method and demo set, plus any other setting that differs). OUT receives, each
 as a PNG (and a PDF with --pdf; named TASK_NAME, with one part of report.md per task, when DIR holds runs of
 several tasks):
     benchmark          training return and success from p0 and from ood versus steps, every method
@@ -20,9 +20,9 @@ and report.md, which embeds the PNGs (relative links) with its tables: how far e
 curriculum came (when it reached p0, or how far back along the demo episodes its starts were), IQM and
 95% CI at the last evaluation per group, the steps to p0 success >= 0.8 with how many seeds got there, the reach counts
 with exact intervals and the area under the success curve, the pairwise tests of `comparison_pairs`
-(eval/statistics.py: exact and rank tests, Holm-corrected, with the power of each), the paper's findings
-(LavaBridge-v0 only, eval/findings.py) and the study's questions on each task with the start
-distributions' runs (eval/study.py: verdicts with effect sizes and their intervals), with a report
+(eval/analysis/statistics.py: exact and rank tests, Holm-corrected, with the power of each), the paper's findings
+(LavaBridge-v0 only, eval/analysis/findings.py) and the study's questions on each task with the start
+distributions' runs (eval/analysis/study.py: verdicts with effect sizes and their intervals), with a report
 on several tasks opening on one table of every task's answers. Lines are IQMs
 across seeds, bands their 95% stratified-bootstrap CIs (rliable). A figure none of whose methods is in
 DIR is skipped with a line in report.md saying so. For the offline methods (bc, iql) a step is a
@@ -34,8 +34,8 @@ start_weights.npz that cannot be read is skipped with a warning (on stderr and i
 maze figure taking its start weights from another run: that run's metrics, and so its curves and
 tables, are intact, and one damaged side file should not cost the whole report.
 
-This module builds and publishes the report and is the command; eval/report_groups.py chooses the
-groups of each figure and test, eval/report_figures.py draws, eval/report_tables.py writes the tables.
+This module builds and publishes the report and is the command; eval/analysis/report_groups.py chooses the
+groups of each figure and test, eval/analysis/report_figures.py draws, eval/analysis/report_tables.py writes the tables.
 """
 
 from __future__ import annotations
@@ -55,25 +55,25 @@ from pathlib import Path
 import numpy as np
 
 import lava_bridge_mj
-from lava_bridge_mj.eval.atomic import nearest_existing
-from lava_bridge_mj.eval.aggregate import (BOOTSTRAP_REPS, BOOTSTRAP_SEED, METRICS, THRESHOLD, Group, RunRecord,
-                                           find_runs, group_runs, iqm_curves)
+from lava_bridge_mj.eval.training.atomic import nearest_existing
+from lava_bridge_mj.eval.analysis.aggregate import (BOOTSTRAP_REPS, BOOTSTRAP_SEED, METRICS, THRESHOLD, Group, RunRecord,
+                                                    find_runs, group_runs, iqm_curves)
 from lava_bridge_mj.eval.arguments import format_seeds, in_main_thread as _in_main_thread, positive_int as _positive_int
 from lava_bridge_mj.eval.arguments import two_looks
 from lava_bridge_mj.eval.arguments import raise_keyboard_interrupt as _interrupt
-from lava_bridge_mj.eval.report_figures import curves_figure, maze_figure, maze_layout, save_figure
-from lava_bridge_mj.eval.report_groups import START_STUDY, benchmark_groups, demo_size_groups, weights_run
-from lava_bridge_mj.eval.report_tables import (counted, findings_section, last_evaluation_table, late_table,
-                                               pairwise_section, reach_table, runs_table, study_overview, study_section,
-                                               threshold_table)
-from lava_bridge_mj.eval.study import Question, answer_questions, answers_record
-from lava_bridge_mj.eval.summary import CurriculumStall, curriculum_progress, curriculum_stall, read_start_weights
+from lava_bridge_mj.eval.analysis.report_figures import curves_figure, maze_figure, maze_layout, save_figure
+from lava_bridge_mj.eval.analysis.report_groups import START_STUDY, benchmark_groups, demo_size_groups, weights_run
+from lava_bridge_mj.eval.analysis.report_tables import (counted, findings_section, last_evaluation_table, late_table,
+                                                        pairwise_section, reach_table, runs_table, study_overview, study_section,
+                                                        threshold_table)
+from lava_bridge_mj.eval.analysis.study import Question, answer_questions, answers_record
+from lava_bridge_mj.eval.analysis.summary import CurriculumStall, curriculum_progress, curriculum_stall, read_start_weights
 from lava_bridge_mj.tasks import DEFAULT_ENV_ID, SUITE
-from lava_bridge_mj.eval.sweep import seed_list
+from lava_bridge_mj.eval.sweeps.sweep import seed_list
 
 MAX_REPS = 100_000
 """Most bootstrap resamples: twice rliable's 50,000, which take 3.6-3.9 s of CPU per group and metric
-on 25 seeds x 30 steps (eval/aggregate.py)."""
+on 25 seeds x 30 steps (eval/analysis/aggregate.py)."""
 WEIGHT_SNAPSHOTS = 4
 """Evaluations of the AuxSS run whose start-state probabilities the maze figure paints."""
 
@@ -87,7 +87,7 @@ def build_report(roots: Path | Sequence[Path], out: Path, threshold: float = THR
     or several; or `runs`, found there already) into `out`; returns report.md's path. `budget`, `seeds` and `task_seeds`
     select evaluations and runs as `find_runs` does; `all_pairs` tests every pair of a task's groups in the
     pairwise table instead of `comparison_pairs`'s; `looks` (first, second seeds per group) checks the
-    study's verdicts at the two-look level too (eval/study.py). ValueError when a root holds no such run or a run's
+    study's verdicts at the two-look level too (eval/analysis/study.py). ValueError when a root holds no such run or a run's
     files cannot be used, OSError when `out` cannot be written: either way `out` is left as it was
     (everything is written into a temporary directory there first). Warnings (start weights that
     cannot be read) go to stderr and into report.md."""
@@ -122,7 +122,7 @@ def build_report(roots: Path | Sequence[Path], out: Path, threshold: float = THR
 def _publish(staging: Path, out: Path) -> None:
     """Move every file written in `staging` into `out`, report.md last (renames within one filesystem:
     no space needed, nothing half-written), then make the renames durable."""
-    from lava_bridge_mj.eval.atomic import fsync_directory
+    from lava_bridge_mj.eval.training.atomic import fsync_directory
 
     for path in sorted(staging.iterdir(), key=lambda p: (p.name == "report.md", p.name)):
         os.replace(path, out / path.name)
@@ -136,7 +136,7 @@ def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dic
     """Every figure and report.md into `out`; returns the warnings. Runs of one task make the report's
     sections; runs of several tasks make one part per task (figures named TASK_NAME), since methods are
     compared within a task only, after a table of every task's answers to the study's questions."""
-    from lava_bridge_mj.eval.atomic import atomic_write_text
+    from lava_bridge_mj.eval.training.atomic import atomic_write_text
 
     warnings: list[str] = []
     where = ", ".join(f"`{root}`" for root in roots)
@@ -150,7 +150,7 @@ def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dic
     title = f"{tasks[0]} report" if len(tasks) == 1 else f"Report on {len(tasks)} tasks ({', '.join(tasks)})"
     lines = [f"# {title}: {where}" + (f", {selection}" if selection else ""), "",
              f"{counted(sum(len(g.runs) for g in groups), 'run')} in {counted(len(groups), 'group')} "
-             f"(one configuration each; eval/aggregate.py says how runs are grouped). Lines and table entries "
+             f"(one configuration each; eval/analysis/aggregate.py says how runs are grouped). Lines and table entries "
              f"are interquartile means (IQM) across seeds; bands and brackets are 95% stratified-bootstrap "
              f"confidence intervals (rliable, {reps:,} resamples, bootstrap seed {BOOTSTRAP_SEED}). Curves use "
              f"the evaluation steps that every seed of a group has. For bc and iql a step is a gradient step on "
@@ -300,7 +300,7 @@ def _task_sections(groups: list[Group], questions: list[Question], curves: dict,
                    all_pairs: bool = False, pdf: bool = False) -> list[str]:
     """The figures and tables of the groups of one task, with its answers to the study's questions,
     under `heading`-level titles, figure files named `prefix` + name (PDFs too with `pdf`)."""
-    from lava_bridge_mj.eval.config import METHODS
+    from lava_bridge_mj.eval.training.config import METHODS
 
     lines: list[str] = []
     drawn: dict[str, list[Group]] = {}  # figure title -> its groups

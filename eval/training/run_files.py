@@ -7,7 +7,7 @@ A run directory holds:
                         settings, defaults filled in
     metrics.csv         one row per evaluation (METRIC_FIELDS): steps, success from p0 and ood, returns,
                         SAC stats
-    metrics.csv.sha256  its checksum (eval/checksums.py): readers refuse a metrics.csv changed since it
+    metrics.csv.sha256  its checksum (eval/training/checksums.py): readers refuse a metrics.csv changed since it
                         was written
     start_weights.npz   the start strategy's candidate states and its weights at every evaluation
     episodes.csv.gz     one row per training episode of an online method (EPISODE_FIELDS), gzip CSV
@@ -19,7 +19,7 @@ A run directory holds:
     policies/step_N.pt  the actor's weights at every evaluation (for videos and later analysis)
     final.pt            the checkpoint at the end of training
     videos/step_N.mp4   rollouts from p0 and ood at every evaluation (only with --log-videos)
-    tensorboard/, wandb/  live tracking sinks (only with --log; eval/tracking.py)
+    tensorboard/, wandb/  live tracking sinks (only with --log; eval/training/tracking.py)
     .lock               held by the process writing the run
 The trainer, sweep and video read and write them through this module.
 
@@ -33,7 +33,7 @@ written before digests were kept loads with its CRCs checked alone. `save_torch`
 memory first, so a failing write (a full disk) surfaces as the OSError naming it rather than deep
 inside torch's writer, and the file is replaced atomically.
 
-A process killed mid-write leaves a temporary file (eval/atomic.py) that `remove_leftovers` clears
+A process killed mid-write leaves a temporary file (eval/training/atomic.py) that `remove_leftovers` clears
 when the run is resumed or overwritten.
 """
 
@@ -54,15 +54,15 @@ from typing import Any
 
 import numpy as np
 
-from lava_bridge_mj.eval.atomic import atomic_write, atomic_write_text, remove_stale_temporaries
-from lava_bridge_mj.eval.checksums import CHECKSUM_SUFFIX, DamagedFileError, content_digest, write_checked
+from lava_bridge_mj.eval.training.atomic import atomic_write, atomic_write_text, remove_stale_temporaries
+from lava_bridge_mj.eval.training.checksums import CHECKSUM_SUFFIX, DamagedFileError, content_digest, write_checked
 
 CHECKPOINTS = ("checkpoint.pt", "checkpoint.prev.pt")
 """The latest checkpoint and the one before it (a resume falls back to it when the latest is damaged)."""
 EPISODE_LOG = "episodes.csv.gz"
 """The episode log as the trainer writes it: EPISODE_FIELDS as CSV, gzip-compressed (`gzip_bytes`)."""
 PLAIN_EPISODE_LOG = "episodes.csv"
-"""The same CSV uncompressed, as runs wrote it before: still read, and converted by eval/compress.py."""
+"""The same CSV uncompressed, as runs wrote it before: still read, and converted by eval/training/compress.py."""
 RUN_FILES = ("config.json", "provenance.json", "metrics.csv", f"metrics.csv{CHECKSUM_SUFFIX}", "start_weights.npz",
              EPISODE_LOG, PLAIN_EPISODE_LOG, *CHECKPOINTS, "final.pt", "rollouts.mp4")
 """What a run directory holds besides policies/: what --overwrite removes."""

@@ -3,7 +3,7 @@
 A compact copy holds what `report`, `summary` and the findings read (config.json, provenance.json,
 metrics.csv with its checksum file metrics.csv.sha256, episodes.csv.gz, start_weights.npz) and none of the
 checkpoints, policies or videos: a few hundred kB per run instead of several MB. A run's metrics.csv is
-verified against its checksum file (eval/checksums.py) before it is copied. Every run directory under
+verified against its checksum file (eval/training/checksums.py) before it is copied. Every run directory under
 RUNS, at any depth, lands at the same relative path under RESULTS, so
 `runs/study/TASK/METHOD-d500/seed7` becomes `RESULTS/TASK/METHOD-d500/seed7`.
 
@@ -27,12 +27,12 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from lava_bridge_mj.eval.atomic import atomic_write, nearest_existing
-from lava_bridge_mj.eval.checksums import checksum_file
-from lava_bridge_mj.eval.config import RunConfig
-from lava_bridge_mj.eval.run_files import (EPISODE_LOG, PLAIN_EPISODE_LOG, DamagedFileError, episode_log_file,
-                                           gzip_bytes, read_config)
-from lava_bridge_mj.eval.summary import read_metrics
+from lava_bridge_mj.eval.analysis.summary import read_metrics
+from lava_bridge_mj.eval.training.atomic import atomic_write, nearest_existing
+from lava_bridge_mj.eval.training.checksums import checksum_file
+from lava_bridge_mj.eval.training.config import RunConfig
+from lava_bridge_mj.eval.training.run_files import (EPISODE_LOG, PLAIN_EPISODE_LOG, DamagedFileError, episode_log_file,
+                                                    gzip_bytes, read_config)
 
 CHECKSUMS = checksum_file("metrics.csv").name
 COMPACT_FILES = ("provenance.json", "metrics.csv", EPISODE_LOG, "start_weights.npz", CHECKSUMS, "config.json")

@@ -1,6 +1,6 @@
 """One seed's part of a training batch: its start strategy, buffers, RNGs, records and run directory.
 
-`Run` (eval/runner.py) steps the seeds of a batch in lockstep; a `SeedRun` holds everything that is
+`Run` (eval/training/runner.py) steps the seeds of a batch in lockstep; a `SeedRun` holds everything that is
 only its seed's, writes its seed's files and makes its seed's checkpoint, so that a seed's files
 are the same as if it had trained alone.
 """
@@ -19,8 +19,8 @@ from lava_bridge_mj.agents.reverse_curriculum import goal_reaching_demos
 from lava_bridge_mj.agents.start_state_wrapper import StartSelector
 from lava_bridge_mj.agents.start_strategies import StrategyContext
 from lava_bridge_mj.agents.strategy_registry import make_start_strategy
-from lava_bridge_mj.eval.config import ConfigurationError, RunConfig
-from lava_bridge_mj.eval.run_files import CHECKPOINT_VERSION, POLICIES, save_checkpoint, save_torch, write_results
+from lava_bridge_mj.eval.training.config import ConfigurationError, RunConfig
+from lava_bridge_mj.eval.training.run_files import CHECKPOINT_VERSION, POLICIES, save_checkpoint, save_torch, write_results
 from lava_bridge_mj.vector import LavaBridgeVectorEnv
 
 

@@ -1,6 +1,6 @@
 """Claims about groups of runs, each decided by a stated test at a stated level.
 
-The paper's findings (eval/findings.py) and the study's questions (eval/study.py) are made of the
+The paper's findings (eval/analysis/findings.py) and the study's questions (eval/analysis/study.py) are made of the
 claims built here: a comparison of two groups (`reach_comparison`, `robust_comparison`, settled by
 `settle`) or a claim about one group alone (`one_group`). Each returns a `Part` whose verdict comes
 from the rules below, none of which depends on the data.
@@ -9,21 +9,21 @@ from the rules below, none of which depends on the data.
 does not), so every claim is read as a claim about counts of seeds:
 
 - *reaching 0.8*: success from p0 at or above `THRESHOLD` at some evaluation up to the step compared
-  (eval/statistics.py's `seed_outcomes`), and the step it first did (never: tied last);
+  (eval/analysis/statistics.py's `seed_outcomes`), and the step it first did (never: tied last);
 - *robust*: the seed's mean success from ood over the late window (the evaluations past two thirds of
-  the step compared, eval/aggregate.py's `LATE_FRACTION`) is at least `ROBUST`.
+  the step compared, eval/analysis/aggregate.py's `LATE_FRACTION`) is at least `ROBUST`.
 
 **A comparison** ("A reaches 0.8 more often or sooner than B", "A is more robust than B") is made on
 MATCHED seeds: only the seeds both groups have, each up to the last evaluation step both have
-(`matched`). Two tests decide it, both two-sided, from eval/statistics.py:
+(`matched`). Two tests decide it, both two-sided, from eval/analysis/statistics.py:
 
 - a claim about reaching 0.8: Fisher's exact test on the reach counts and the rank test (Mann-Whitney U
   by permutation) on the steps to 0.8, a seed that never got there tied last;
 - a claim about robustness: Fisher's exact test on the counts of robust seeds and the permutation test
   of the difference in mean late-window success from ood.
 
-**The verdicts** of the comparisons settled together (`settle`, one family: eval/findings.py settles all
-the findings' comparisons at once, eval/study.py each question on each task), at a level `alpha` (`ALPHA`,
+**The verdicts** of the comparisons settled together (`settle`, one family: eval/analysis/findings.py settles all
+the findings' comparisons at once, eval/analysis/study.py each question on each task), at a level `alpha` (`ALPHA`,
 or the stricter level of a study read at two looks):
 
 - **supported** (A ahead) when a test rejects, its p-value Holm-corrected across every test of the family
@@ -42,7 +42,7 @@ or the stricter level of a study read at two looks):
   equivalence test at its strictest step (`alpha` over the family's comparisons) to bound the rate
   difference within the margin with 80% power if the rates are equal.
 
-All the tests are exact or analytic (eval/statistics.py): no verdict depends on a random number. A claim
+All the tests are exact or analytic (eval/analysis/statistics.py): no verdict depends on a random number. A claim
 that A *matches* B is supported when no test rejects and the equivalence test does, contradicted when a
 test rejects either way, and undecided otherwise. A claim that the paper states as a ratio of steps
 (finding 2's "a third of the steps") is tested as the comparison it implies, sooner or more often: a
@@ -64,9 +64,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from lava_bridge_mj.eval import statistics as stats
-from lava_bridge_mj.eval.aggregate import LATE_FRACTION, Group, groups_of
-from lava_bridge_mj.eval.summary import THRESHOLD
+from lava_bridge_mj.eval.analysis import statistics as stats
+from lava_bridge_mj.eval.analysis.aggregate import LATE_FRACTION, Group, groups_of
+from lava_bridge_mj.eval.analysis.summary import THRESHOLD
 
 ALPHA, POWER = stats.ALPHA, stats.POWER
 EFFECT = 0.3

@@ -9,7 +9,7 @@ import subprocess
 import sys
 from contextlib import redirect_stderr, redirect_stdout
 
-from lava_bridge_mj.eval.sweep_jobs import SweepRecord, print_finished, run_spec, without_result, worker_environment
+from lava_bridge_mj.eval.sweeps.sweep_jobs import SweepRecord, print_finished, run_spec, without_result, worker_environment
 
 RAY_CONNECT_TIMEOUT = 30.0
 """Seconds `--address` may take to answer before the sweep gives up (ray.init itself retries for many

@@ -31,13 +31,13 @@ import numpy as np
 
 import lava_bridge_mj
 from lava_bridge_mj.agents.reverse_curriculum import goal_reaching_demos
-from lava_bridge_mj.eval import run_files
-from lava_bridge_mj.eval.checksums import read_checked
+from lava_bridge_mj.eval.training import run_files
+from lava_bridge_mj.eval.training.checksums import read_checked
 from lava_bridge_mj.layout import Layout
 
 THRESHOLD = 0.8
 METRIC_COLUMNS = ("step", "success_p0", "success_ood")
-"""The metrics.csv columns every reader needs (eval/runner.py writes more)."""
+"""The metrics.csv columns every reader needs (eval/training/runner.py writes more)."""
 EPISODE_COLUMNS = ("step", "start_x", "start_y", "success")
 """The episode log columns the start-room count needs."""
 
@@ -46,7 +46,7 @@ def read_csv(path: Path, columns: tuple[str, ...],
              read: Callable[[Path], bytes] = read_checked) -> list[dict[str, float]]:
     """The rows of a CSV file of numbers as dicts, its bytes from `read` (`read_checked`, or
     `run_files.read_episode_log` for an episode log); ValueError naming the file (and the line) when it
-    cannot be read, does not match its checksum file (where it has one: eval/checksums.py), lacks one
+    cannot be read, does not match its checksum file (where it has one: eval/training/checksums.py), lacks one
     of `columns`, or holds something other than numbers."""
     try:
         with io.StringIO(read(path).decode(), newline="") as f:
@@ -75,7 +75,7 @@ def read_metrics(run_dir: Path) -> list[dict[str, float]]:
 
 
 def read_start_weights(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(steps, states, probabilities) of a start_weights.npz (eval/runner.py): at evaluation i, the
+    """(steps, states, probabilities) of a start_weights.npz (eval/training/runner.py): at evaluation i, the
     start strategy's probability of each candidate state (none for a p0 method). ValueError naming the
     file when it cannot be read or does not hold that."""
     try:

@@ -22,11 +22,11 @@ from pathlib import Path
 
 import lava_bridge_mj
 from lava_bridge_mj.eval.arguments import format_seeds, signal_of, stop_reason, stopping_on_signals
-from lava_bridge_mj.eval.atomic import atomic_write_text, process_alive
-from lava_bridge_mj.eval.config import RunConfig
-from lava_bridge_mj.eval.run_files import DamagedFileError, checkpoint_step, read_config, run_status
+from lava_bridge_mj.eval.training.atomic import atomic_write_text, process_alive
+from lava_bridge_mj.eval.training.config import RunConfig
+from lava_bridge_mj.eval.training.run_files import DamagedFileError, checkpoint_step, read_config, run_status
 
-JOB_COMMAND = ("import sys; from lava_bridge_mj.eval.sweep_jobs import job_main; "
+JOB_COMMAND = ("import sys; from lava_bridge_mj.eval.sweeps.sweep_jobs import job_main; "
                "job_main(sys.argv[1], sys.argv[2], int(sys.argv[3]))")
 """How a local worker process is started: python -c JOB_COMMAND SPEC_JSON RESULT_FILE SWEEP_PID."""
 PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
@@ -98,7 +98,7 @@ def run_job(job: Job, config_values: dict, out: str | Path, threads: int = 1, pr
     batch per checkpoint step (a batch resumes only from a step all its seeds share); a directory
     that holds another configuration is an error, and the job's other seeds still train. `progress`:
     the path of the file that says how far the job is (tracking.ProgressReport), for the sweep's lines."""
-    from lava_bridge_mj.eval.runner import RunInterrupted, train  # loads torch: the planner does not
+    from lava_bridge_mj.eval.training.runner import RunInterrupted, train  # loads torch: the planner does not
 
     started = time.perf_counter()
     result = {"status": "done", "trained": [], "skipped": [], "resumed": {}, "diverged": {}, "error": None}

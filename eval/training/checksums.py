@@ -22,7 +22,7 @@ import struct
 from pathlib import Path
 from typing import Any
 
-from lava_bridge_mj.eval.atomic import atomic_write, atomic_write_text
+from lava_bridge_mj.eval.training.atomic import atomic_write, atomic_write_text
 
 CHECKSUM_SUFFIX = ".sha256"
 

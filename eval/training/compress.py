@@ -1,4 +1,4 @@
-"""`python -m lava_bridge_mj.eval.compress DIR [DIR ...]`: plain episode logs compressed in place.
+"""`python -m lava_bridge_mj.eval.training.compress DIR [DIR ...]`: plain episode logs compressed in place.
 
 Every episodes.csv under each DIR (at any depth) becomes episodes.csv.gz, the form the trainer now
 writes (`run_files.write_episode_log`: deterministic gzip, so a log converted here has the same bytes
@@ -8,7 +8,7 @@ plain one is deleted; a log that fails a check is left as it was, named, and the
 Running it again converts nothing more (a log killed between the two steps, compressed but with its
 plain file still there, is finished: the plain file goes once the compressed one is checked against it).
 
-    python -m lava_bridge_mj.eval.compress results/study/LavaBridge-v0     # or: make compress-results
+    python -m lava_bridge_mj.eval.training.compress results/study/LavaBridge-v0     # or: make compress-results
 """
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from lava_bridge_mj.eval.atomic import atomic_write
-from lava_bridge_mj.eval.run_files import EPISODE_LOG, PLAIN_EPISODE_LOG, gzip_bytes, read_episode_log
+from lava_bridge_mj.eval.training.atomic import atomic_write
+from lava_bridge_mj.eval.training.run_files import EPISODE_LOG, PLAIN_EPISODE_LOG, gzip_bytes, read_episode_log
 
 
 @dataclass
@@ -76,7 +76,7 @@ def compress(directories: list[Path]) -> Compressed:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m lava_bridge_mj.eval.compress", description=__doc__.splitlines()[0],
+    parser = argparse.ArgumentParser(prog="python -m lava_bridge_mj.eval.training.compress", description=__doc__.splitlines()[0],
                                      epilog="exits 1 when a log was refused, 2 on bad arguments")
     parser.add_argument("directories", nargs="+", type=Path, metavar="DIR",
                         help="a directory of run directories (any depth), e.g. results/study/LavaBridge-v0")

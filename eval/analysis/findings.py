@@ -2,7 +2,7 @@
 
 `check_findings(groups)` returns one `Finding` per claim of the paper (findings 1-8). A finding is
 made of parts, each a test of one comparison or of one group alone, and every part's verdict comes
-from the rules of eval/claims.py, none of which depends on the data. All online groups are first cut
+from the rules of eval/analysis/claims.py, none of which depends on the data. All online groups are first cut
 to the last step every one of them has (`common_step`), and the p-values of every comparison of every
 finding form one Holm family.
 
@@ -26,7 +26,7 @@ variant, and are given per part (one verdict when all of them agree).
 7. Demo size: each method with 7.5K demo transitions reaches 0.8 more often or sooner than with 0.5K.
 8. Ablations: AuxSS as in the paper reaches 0.8 more often or sooner than each of its variants.
 
-Groups are taken in their default configuration: a group whose settings (eval/aggregate.py) differ
+Groups are taken in their default configuration: a group whose settings (eval/analysis/aggregate.py) differ
 from RunConfig's defaults is a variant (an ablation, a LayerNorm critic) and never stands in for its
 method in findings 1-7. Offline methods count gradient steps and are left as they are.
 """
@@ -38,11 +38,11 @@ import dataclasses
 import numpy as np
 
 from lava_bridge_mj.agents.methods import METHODS
-from lava_bridge_mj.eval.aggregate import Group, demos_label, groups_of
-from lava_bridge_mj.eval.claims import (CONTRADICTED, NO_DIFFERENCE, NOT_RUN, SUPPORTED, TOLERANCE, UNDECIDED, Part,
-                                        Pending, is_default, one_group, pick, reach_comparison, robust_comparison,
-                                        settle, until)
-from lava_bridge_mj.eval.summary import THRESHOLD
+from lava_bridge_mj.eval.analysis.aggregate import Group, demos_label, groups_of
+from lava_bridge_mj.eval.analysis.claims import (CONTRADICTED, NO_DIFFERENCE, NOT_RUN, SUPPORTED, TOLERANCE, UNDECIDED, Part,
+                                                 Pending, is_default, one_group, pick, reach_comparison, robust_comparison,
+                                                 settle, until)
+from lava_bridge_mj.eval.analysis.summary import THRESHOLD
 
 NEAR_ZERO = 0.1
 """Success from p0 that a seed of a method that "stays near 0" never exceeds."""

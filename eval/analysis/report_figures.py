@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from lava_bridge_mj.eval.aggregate import Curve, Group, RunRecord
-from lava_bridge_mj.eval.report_groups import STANDARD_DEMOS, is_offline
+from lava_bridge_mj.eval.analysis.aggregate import Curve, Group, RunRecord
+from lava_bridge_mj.eval.analysis.report_groups import STANDARD_DEMOS, is_offline
 
 METRIC_TITLES = {"train_return": "training return", "success_p0": "success from p0 (ID)",
                  "success_ood": "success from ood (OOD)"}
@@ -32,7 +32,7 @@ def _pyplot():
 
 def _style(groups: list[Group]) -> dict[str, dict]:
     """Colour by method (the same in every figure), line style by demo set, then by variant."""
-    from lava_bridge_mj.eval.config import METHODS
+    from lava_bridge_mj.eval.training.config import METHODS
 
     plt = _pyplot()
     palette = plt.get_cmap("tab10").colors
@@ -201,7 +201,7 @@ def png_bytes(fig) -> bytes:
 
 def save_figure(fig, out: Path, name: str, pdf: bool = False) -> list[Path]:
     """`name`.png in `out` (`png_bytes`) and, with `pdf`, `name`.pdf, each written atomically."""
-    from lava_bridge_mj.eval.atomic import atomic_write
+    from lava_bridge_mj.eval.training.atomic import atomic_write
 
     png = out / f"{name}.png"
     data = png_bytes(fig)

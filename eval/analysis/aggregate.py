@@ -1,7 +1,7 @@
 """Aggregate run directories: interquartile means across seeds with stratified-bootstrap 95% CIs.
 
 A run is any directory, at any depth under the one given, that holds both `config.json` and a
-`metrics.csv` with at least one row (eval/runner.py writes them); names of directories are not read.
+`metrics.csv` with at least one row (eval/training/runner.py writes them); names of directories are not read.
 
 **Groups.** Runs are grouped by task (config.json's `env_id`), method and demo set first, labelled like
 `auxss (0.5K)`, with ` on TASK` added for a task other than LavaBridge-v0. Runs of one
@@ -13,7 +13,7 @@ defaults: `auxss (0.5K) [strategy.sigma=0.2]` beside plain `auxss (0.5K)`, so th
 configuration always reads as the method itself, and two groups never share a label. An entry a
 config.json lacks because it predates the field counts as RunConfig's current default. A group
 therefore holds the seeds of exactly one configuration, never a mix. `steps` is a budget, not a configuration: a run extended from 100,000 to
-300,000 steps has the same first evaluations as one stopped at 100,000 (eval/runner.py), so both
+300,000 steps has the same first evaluations as one stopped at 100,000 (eval/training/runner.py), so both
 join one group. `find_runs(root, budget=N)` keeps only evaluations at or before step N, which puts
 runs of different budgets on one footing (steps to threshold included); `seeds=` keeps only those seeds.
 
@@ -34,7 +34,7 @@ third of the group's common steps (those past two thirds of its last one: 210,00
 300,000, 70,000-100,000 of 100,000), then the IQM across seeds with the same bootstrap CI: where a
 group ended up, without the single evaluation's swing.
 
-**Steps to threshold.** Per seed, the first evaluation step with success_p0 >= 0.8 (eval/summary.py's
+**Steps to threshold.** Per seed, the first evaluation step with success_p0 >= 0.8 (eval/analysis/summary.py's
 definition); per group, how many seeds ever reached it, and the median and IQM over *all* seeds with a
 seed that never reached it counted as infinitely late. A median or IQM that a never-reached seed
 enters is therefore infinite ("not reached"), rather than an optimistic number over the lucky seeds.
@@ -55,7 +55,7 @@ from typing import Any
 import numpy as np
 import scipy.stats
 
-from lava_bridge_mj.eval.summary import THRESHOLD, read_config, read_metrics, seed_summary
+from lava_bridge_mj.eval.analysis.summary import THRESHOLD, read_config, read_metrics, seed_summary
 from lava_bridge_mj.tasks import DEFAULT_ENV_ID, SUITE, TASKS
 
 METRICS = ("success_p0", "success_ood", "train_return")
@@ -139,7 +139,7 @@ def _check_run_config(config: dict[str, Any], config_file: Path) -> None:
     does) and, where it has them, evaluation episodes in RunConfig's range: what the report reads and
     counts by. Not the whole RunConfig check, which builds the task's env for each of many runs."""
     from lava_bridge_mj.checks import check_integer
-    from lava_bridge_mj.eval.config import MAX_EVAL_EPISODES, METHODS
+    from lava_bridge_mj.eval.training.config import MAX_EVAL_EPISODES, METHODS
 
     if config.get("method") not in METHODS:
         found = f"unknown method {config['method']!r}" if "method" in config else "no method"
@@ -171,7 +171,7 @@ def _flatten(values: dict[str, Any], prefix: str = "") -> dict[str, str]:
 @functools.cache
 def default_settings() -> dict[str, str]:
     """RunConfig's defaults, flattened to dotted names like a config.json's entries."""
-    from lava_bridge_mj.eval.config import RunConfig
+    from lava_bridge_mj.eval.training.config import RunConfig
 
     return _flatten(RunConfig().to_dict())
 
@@ -227,7 +227,7 @@ class Group:
 def group_runs(runs: list[RunRecord]) -> list[Group]:
     """Runs grouped by configuration (see the module docstring), in the suite's task order, then the
     runner's method order, then demo set, then label; each group's runs in seed order."""
-    from lava_bridge_mj.eval.config import METHODS
+    from lava_bridge_mj.eval.training.config import METHODS
 
     # an entry a config.json lacks (written before the field existed) counts as today's default
     defaults = default_settings()

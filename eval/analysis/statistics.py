@@ -14,7 +14,7 @@ also states, per group and per pair of groups:
   there tied in last place, its p-value from the exact permutation distribution of U, so the many
   ties are handled without a normal approximation.
 - **Permutation tests** on the final success from p0 and on each seed's mean over the late window
-  (eval/aggregate.py's last third): the difference of the group means, two-sided.
+  (eval/analysis/aggregate.py's last third): the difference of the group means, two-sided.
 - Both permutation p-values are **exact**: every split of the seeds into the two groups is counted, by
   dynamic programming over the distinct values (`permutation_sum_p`; 49 against 49 seeds have 2.5e28
   splits), so no verdict depends on a random number. Values off any grid (never the case for success
@@ -51,7 +51,7 @@ import scipy.integrate
 import scipy.optimize
 import scipy.stats
 
-from lava_bridge_mj.eval.aggregate import LATE_FRACTION
+from lava_bridge_mj.eval.analysis.aggregate import LATE_FRACTION
 
 ALPHA = 0.05
 """Level of every test and of the power calculation."""
@@ -148,7 +148,7 @@ class SeedOutcomes:
 
 
 def seed_outcomes(group, threshold: float, until: float | None = None) -> SeedOutcomes | None:
-    """The outcomes of a group (eval/aggregate.py's `Group`) over its evaluations up to step `until`
+    """The outcomes of a group (eval/analysis/aggregate.py's `Group`) over its evaluations up to step `until`
     (default: all of them), measured at the last step that all of its seeds have there; None when
     its seeds share no step up to `until`."""
     steps = group.steps

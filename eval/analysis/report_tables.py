@@ -3,7 +3,7 @@ window, steps to threshold, reach counts, the pairwise tests, the paper's findin
 questions.
 
 Each takes the groups of one task (and the curves or settings it needs) and returns the table's
-lines, text and rows; eval/aggregate.py and eval/statistics.py hold the arithmetic.
+lines, text and rows; eval/analysis/aggregate.py and eval/analysis/statistics.py hold the arithmetic.
 """
 
 from __future__ import annotations
@@ -13,13 +13,13 @@ import math
 
 import numpy as np
 
-from lava_bridge_mj.eval import statistics as stats
-from lava_bridge_mj.eval.aggregate import Curve, Group, late_means, steps_to_threshold
-from lava_bridge_mj.eval.claims import ALPHA, EFFECT, MOST, POWER, ROBUST
-from lava_bridge_mj.eval.findings import check_findings, common_step
-from lava_bridge_mj.eval.report_groups import comparison_pairs
-from lava_bridge_mj.eval.study import QUESTIONS, Question
-from lava_bridge_mj.eval.summary import THRESHOLD
+from lava_bridge_mj.eval.analysis import statistics as stats
+from lava_bridge_mj.eval.analysis.aggregate import Curve, Group, late_means, steps_to_threshold
+from lava_bridge_mj.eval.analysis.claims import ALPHA, EFFECT, MOST, POWER, ROBUST
+from lava_bridge_mj.eval.analysis.findings import check_findings, common_step
+from lava_bridge_mj.eval.analysis.report_groups import comparison_pairs
+from lava_bridge_mj.eval.analysis.study import QUESTIONS, Question
+from lava_bridge_mj.eval.analysis.summary import THRESHOLD
 
 
 def _interval(curve: Curve, digits: int = 2) -> str:
@@ -113,7 +113,7 @@ def counted(number: int, noun: str) -> str:
 
 
 def pairwise_section(groups: list[Group], threshold: float, all_pairs: bool = False) -> list[str]:
-    """The pairwise table: every test of eval/statistics.py for each of `comparison_pairs` (every pair of
+    """The pairwise table: every test of eval/analysis/statistics.py for each of `comparison_pairs` (every pair of
     `groups` with `all_pairs`)."""
     compared, skipped = [], []
     pairs = list(itertools.combinations(groups, 2)) if all_pairs else comparison_pairs(groups)
@@ -163,7 +163,7 @@ _NO_DIFFERENCE_RULE = (
     f"across the family's comparisons, the intervals at the level of each comparison's Holm step shown beside "
     f"it; *undecided* otherwise, with the seeds per group that would give {POWER:.0%} power at the family's "
     f"strictest levels both to detect a difference of {EFFECT:g} in the rate (Fisher's test) and to bound a tie "
-    f"within the margin (eval/claims.py states the rules).")
+    f"within the margin (eval/analysis/claims.py states the rules).")
 
 
 def _unrejected(part) -> str:
@@ -172,13 +172,13 @@ def _unrejected(part) -> str:
 
 
 def findings_section(groups: list[Group], heading: str = "##") -> list[str]:
-    """The paper's findings, each decided by the tests eval/claims.py and eval/findings.py state, and the tests
+    """The paper's findings, each decided by the tests eval/analysis/claims.py and eval/analysis/findings.py state, and the tests
     behind them."""
     step = common_step(groups)
     cut = f" Online methods are compared up to step {step:,.0f}, the last that all of them have." if step else ""
     found = check_findings(groups)
     tested = [part.tests.count("Holm") for f in found for part in f.parts if part.tests]
-    lines = [f"Each claim decided by the tests written in eval/claims.py and eval/findings.py (default "
+    lines = [f"Each claim decided by the tests written in eval/analysis/claims.py and eval/analysis/findings.py (default "
              f"configurations only but in finding 8). A comparison uses matched seeds, those both groups have, "
              f"each up to the last step both have; its two-sided p-values are Holm-corrected as one family, the "
              f"{sum(tested)} p-values of the {len(tested)} comparisons of this table, and a test rejects at "
@@ -199,7 +199,7 @@ def study_section(questions: list[Question], heading: str = "##") -> list[str]:
     tests, effect and verdict; empty when none of the questions' pairs was run."""
     if not questions:
         return []
-    lines = [f"Each question is answered by the comparisons eval/study.py states, on each method's default "
+    lines = [f"Each question is answered by the comparisons eval/analysis/study.py states, on each method's default "
              f"configuration with 0.5K demo transitions: A against B on matched seeds (those both groups have, "
              f"each up to the last step both have), *learns faster* by Fisher's exact test on the seeds reaching "
              f"{THRESHOLD:g} and the rank test on the steps to it, *more robust* by Fisher's exact test on the "

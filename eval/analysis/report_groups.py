@@ -1,6 +1,6 @@
 """Which groups go into which figure and table of the report.
 
-Each function takes the groups of one task (eval/aggregate.py's `group_runs`, in its order) and
+Each function takes the groups of one task (eval/analysis/aggregate.py's `group_runs`, in its order) and
 returns those that a figure or test uses, in that order; none draws or writes anything. Methods are
 picked through `groups_of` and described by the method registry (agents/methods.py), never by a
 list of names kept here.
@@ -11,8 +11,8 @@ from __future__ import annotations
 import math
 
 from lava_bridge_mj.agents.methods import METHODS
-from lava_bridge_mj.eval.aggregate import Group, RunRecord, groups_of, steps_to_threshold
-from lava_bridge_mj.eval.claims import is_default, pick
+from lava_bridge_mj.eval.analysis.aggregate import Group, RunRecord, groups_of, steps_to_threshold
+from lava_bridge_mj.eval.analysis.claims import is_default, pick
 
 STANDARD_DEMOS = 500
 """The paper's benchmark protocol gives every demo-using method 500 transitions (0.5K)."""

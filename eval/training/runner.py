@@ -1,5 +1,5 @@
 """The training loop: train one method for one seed, or for K seeds at once, writing one run
-directory per seed (eval/run_files.py lists its files). Every file is replaced
+directory per seed (eval/training/run_files.py lists its files). Every file is replaced
 atomically, so an interrupted run never leaves a half-written one. The method (agents/methods.py)
 decides the learner, the start strategy and how the demos are used; this loop reads only that.
 
@@ -35,15 +35,15 @@ from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
 from lava_bridge_mj.agents.seed_batch import stack_batches
 from lava_bridge_mj.checks import check_integer
 from lava_bridge_mj.eval.arguments import Interrupted, format_seeds, handling_signals, stop_reason
-from lava_bridge_mj.eval.config import RunConfig, check_batch_fits
-from lava_bridge_mj.eval.evaluate import EVAL_STARTS, MAX_EVAL_ENVS, evaluate
-from lava_bridge_mj.eval.provenance import code_provenance
-from lava_bridge_mj.eval.run_files import (CHECKPOINTS, VIDEOS, DamagedFileError, RunDirectoryError,
-                                           append_provenance, check_run_directory, check_strategy_unchanged,
-                                           locked, read_checkpoint, remove_leftovers, remove_run, write_config)
-from lava_bridge_mj.eval.seed_run import SeedRun
-from lava_bridge_mj.eval.tracking import (TRAIN_LOG_EVERY, ProgressReport, check_sinks, open_sink,
-                                          training_scalars, wandb_settings)
+from lava_bridge_mj.eval.training.config import RunConfig, check_batch_fits
+from lava_bridge_mj.eval.training.evaluate import EVAL_STARTS, MAX_EVAL_ENVS, evaluate
+from lava_bridge_mj.eval.training.provenance import code_provenance
+from lava_bridge_mj.eval.training.run_files import (CHECKPOINTS, VIDEOS, DamagedFileError, RunDirectoryError,
+                                                    append_provenance, check_run_directory, check_strategy_unchanged,
+                                                    locked, read_checkpoint, remove_leftovers, remove_run, write_config)
+from lava_bridge_mj.eval.training.seed_run import SeedRun
+from lava_bridge_mj.eval.training.tracking import (TRAIN_LOG_EVERY, ProgressReport, check_sinks, open_sink,
+                                                   training_scalars, wandb_settings)
 
 
 class RunInterrupted(Exception):
@@ -131,7 +131,7 @@ class Run:
         self.stop_signal: int | None = None  # set by SIGINT/SIGTERM: checkpoint and stop after this step
         self.active = np.ones(len(configs), dtype=bool)  # False: the seed diverged and stopped
         self.diverged: dict[int, int] = {}  # seed -> the step it stopped at
-        self.sinks: list[list] = [[] for _ in configs]  # each seed's tracking sinks (eval/tracking.py)
+        self.sinks: list[list] = [[] for _ in configs]  # each seed's tracking sinks (eval/training/tracking.py)
         self.log_every = TRAIN_LOG_EVERY  # steps between the sinks' training scalars
         self.video_env = None  # renders each evaluation's rollouts, when tracking asks for videos
         self.video_frame = None  # and draws each frame of them (eval/video.py's video_env)
@@ -238,7 +238,7 @@ class Run:
         self.save("final.pt")
 
     def _log_training(self, session: tuple[int, float], start_time: float) -> None:
-        """Each active seed's training scalars to its sinks (eval/tracking.py): read from what the loop
+        """Each active seed's training scalars to its sinks (eval/training/tracking.py): read from what the loop
         keeps anyway, so logging changes nothing in training."""
         now = time.perf_counter()
         fps = (self.step - session[0]) / max(now - session[1], 1e-9)
@@ -314,7 +314,7 @@ class Run:
     def tracking(self, sinks: Sequence[str], videos: bool = False, log_every: int = TRAIN_LOG_EVERY,
                  wandb: dict[str, str] | None = None):
         """Each seed logs its training scalars every `log_every` steps and its evaluations to `sinks`
-        (eval/tracking.py; `wandb`: the W&B sink's wandb_settings()) while the block runs, with the
+        (eval/training/tracking.py; `wandb`: the W&B sink's wandb_settings()) while the block runs, with the
         rollouts of each evaluation as videos/step_N.mp4 when `videos`; closed however the block ends."""
         self.log_every = check_integer("log_every", log_every, 1)
         if videos:
@@ -424,7 +424,7 @@ def train(config: RunConfig, out_dir: str | Path | Sequence[str | Path], *, seed
     While training, every directory is locked against a second process.
 
     `progress`: a progress bar (True), none (False), or the path of a `ProgressReport` file (a sweep's jobs).
-    `log` names live tracking sinks ("tensorboard", "wandb": eval/tracking.py) that each seed's
+    `log` names live tracking sinks ("tensorboard", "wandb": eval/training/tracking.py) that each seed's
     training scalars (every `log_every` steps) and evaluations go to as well; `log_videos` writes each
     evaluation's rollouts from p0 and ood to videos/step_N.mp4 (and to the sinks). `wandb` sets the
     W&B runs' {"project", "entity", "group", "name"} (over the WANDB_* environment variables; only
