@@ -3,7 +3,7 @@
 Copies the committed episode logs of RUNS (default: the reverse curriculum's runs on LavaBridge-v0 in
 results/study, the logs the study report reads) into a scratch directory three ways: plain CSV,
 gzip CSV as the trainer writes it (`run_files.gzip_bytes`) and, where pyarrow is installed, Parquet
-(pandas). It then reads every log with the report's reader (`summary.read_csv` through
+(pandas). It then reads every log with the report's reader (`run_files.read_csv` through
 `run_files.read_episode_log`, as `summary.curriculum_stall` does), and with pandas, timing the best
 of `--repeats` passes, and prints bytes and seconds side by side.
 
@@ -21,7 +21,8 @@ import time
 from pathlib import Path
 
 from lava_bridge_mj.eval.training import run_files
-from lava_bridge_mj.eval.analysis.summary import EPISODE_COLUMNS, read_csv
+from lava_bridge_mj.eval.analysis.summary import EPISODE_COLUMNS
+from lava_bridge_mj.eval.training.run_files import read_csv
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -69,6 +69,10 @@ def device(text: str) -> str:
     return text.strip()
 
 
+MAX_SEEDS = 1000
+"""Most seeds one --seeds list may name: a typo such as 0-99999999 is refused instead of planning for hours."""
+
+
 def parse_seeds(text: str) -> list[int]:
     """'0-24', '3', '0,2,5-7' -> a list of distinct non-negative seeds, in the order given."""
     seeds: list[int] = []
@@ -85,6 +89,21 @@ def parse_seeds(text: str) -> list[int]:
     if repeated:
         raise argparse.ArgumentTypeError(f"seeds must be distinct; repeated: {repeated}")
     return seeds
+
+
+def seed_list(text: str) -> list[int]:
+    """An argparse type: parse_seeds' list ('0-24', '0,3,5-7'), refused beyond MAX_SEEDS seeds before
+    it is built."""
+    count = 0
+    for part in text.split(","):
+        low, dash, high = part.strip().partition("-")
+        try:
+            count += int(high) - int(low) + 1 if dash else 1
+        except ValueError:
+            break  # parse_seeds names the malformed part
+    if count > MAX_SEEDS:
+        raise argparse.ArgumentTypeError(f"expected at most {MAX_SEEDS:,} seeds, got {count:,} in {text!r}")
+    return parse_seeds(text)
 
 
 def format_seeds(seeds: Sequence[int]) -> str:

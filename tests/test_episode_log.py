@@ -15,7 +15,8 @@ from lava_bridge_mj.eval import cli
 from lava_bridge_mj.eval.training import compress, run_files
 from lava_bridge_mj.eval.training.run_files import EPISODE_LOG, PLAIN_EPISODE_LOG
 from lava_bridge_mj.eval.training.runner import train
-from lava_bridge_mj.eval.analysis.summary import EPISODE_COLUMNS, read_csv
+from lava_bridge_mj.eval.analysis.summary import EPISODE_COLUMNS
+from lava_bridge_mj.eval.training.run_files import read_csv
 
 ROOT = Path(__file__).resolve().parent.parent
 ROWS = [(1, 8, 141, 0.8869671685798248, -3.16e-10, 8, 0, 0.0), (2, 29, -1, 3.17, 0.5385, 21, 1, 1.0)]

@@ -120,7 +120,7 @@ def test_bad_directories_are_refused_with_a_usage_line_and_nothing_written(runs,
 
 
 def test_a_copy_carries_the_metrics_checksum_and_verifies(runs, tmp_path):
-    from lava_bridge_mj.eval.analysis.summary import read_metrics
+    from lava_bridge_mj.eval.training.run_files import read_metrics
 
     results = tmp_path / "results"
     assert main([str(runs), str(results)]) == 0

@@ -55,7 +55,8 @@ from typing import Any
 import numpy as np
 import scipy.stats
 
-from lava_bridge_mj.eval.analysis.summary import THRESHOLD, read_config, read_metrics, seed_summary
+from lava_bridge_mj.eval.analysis.summary import THRESHOLD, read_config, seed_summary
+from lava_bridge_mj.eval.training.run_files import read_metrics
 from lava_bridge_mj.tasks import DEFAULT_ENV_ID, SUITE, TASKS
 
 METRICS = ("success_p0", "success_ood", "train_return")

@@ -59,7 +59,7 @@ from lava_bridge_mj.eval.training.atomic import nearest_existing
 from lava_bridge_mj.eval.analysis.aggregate import (BOOTSTRAP_REPS, BOOTSTRAP_SEED, METRICS, THRESHOLD, Group, RunRecord,
                                                     find_runs, group_runs, iqm_curves)
 from lava_bridge_mj.eval.arguments import format_seeds, in_main_thread as _in_main_thread, positive_int as _positive_int
-from lava_bridge_mj.eval.arguments import two_looks
+from lava_bridge_mj.eval.arguments import seed_list, two_looks
 from lava_bridge_mj.eval.arguments import raise_keyboard_interrupt as _interrupt
 from lava_bridge_mj.eval.analysis.report_figures import curves_figure, maze_figure, maze_layout, save_figure
 from lava_bridge_mj.eval.analysis.report_groups import START_STUDY, benchmark_groups, demo_size_groups, weights_run
@@ -69,7 +69,6 @@ from lava_bridge_mj.eval.analysis.report_tables import (counted, findings_sectio
 from lava_bridge_mj.eval.analysis.study import Question, answer_questions, answers_record
 from lava_bridge_mj.eval.analysis.summary import CurriculumStall, curriculum_progress, curriculum_stall, read_start_weights
 from lava_bridge_mj.tasks import DEFAULT_ENV_ID, SUITE
-from lava_bridge_mj.eval.sweeps.sweep import seed_list
 
 MAX_REPS = 100_000
 """Most bootstrap resamples: twice rliable's 50,000, which take 3.6-3.9 s of CPU per group and metric

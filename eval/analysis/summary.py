@@ -18,13 +18,10 @@ whether a seed that does not learn from p0 never tried from there, or tried and 
 from __future__ import annotations
 
 import argparse
-import csv
 import dataclasses
 import functools
-import io
 import math
 import sys
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -32,46 +29,12 @@ import numpy as np
 import lava_bridge_mj
 from lava_bridge_mj.agents.reverse_curriculum import goal_reaching_demos
 from lava_bridge_mj.eval.training import run_files
-from lava_bridge_mj.eval.training.checksums import read_checked
+from lava_bridge_mj.eval.training.run_files import read_csv, read_metrics
 from lava_bridge_mj.layout import Layout
 
 THRESHOLD = 0.8
-METRIC_COLUMNS = ("step", "success_p0", "success_ood")
-"""The metrics.csv columns every reader needs (eval/training/runner.py writes more)."""
 EPISODE_COLUMNS = ("step", "start_x", "start_y", "success")
 """The episode log columns the start-room count needs."""
-
-
-def read_csv(path: Path, columns: tuple[str, ...],
-             read: Callable[[Path], bytes] = read_checked) -> list[dict[str, float]]:
-    """The rows of a CSV file of numbers as dicts, its bytes from `read` (`read_checked`, or
-    `run_files.read_episode_log` for an episode log); ValueError naming the file (and the line) when it
-    cannot be read, does not match its checksum file (where it has one: eval/training/checksums.py), lacks one
-    of `columns`, or holds something other than numbers."""
-    try:
-        with io.StringIO(read(path).decode(), newline="") as f:
-            reader = csv.DictReader(f)
-            missing = [name for name in columns if name not in (reader.fieldnames or ())]
-            if missing:
-                raise ValueError(f"{path} is not a table as the trainer writes it: no column {', '.join(missing)}")
-            rows = []
-            for row in reader:
-                try:
-                    if None in row or None in row.values():
-                        raise ValueError("a row with another number of fields than the header")
-                    rows.append({name: float(value) for name, value in row.items()})
-                except ValueError as error:
-                    raise ValueError(f"{path} line {reader.line_num}: {error}") from None
-            return rows
-    except OSError as error:
-        raise ValueError(f"{path} cannot be read: {error.strerror or error}") from None
-    except (UnicodeDecodeError, csv.Error) as error:
-        raise ValueError(f"{path} is not a CSV table of numbers ({error})") from None
-
-
-def read_metrics(run_dir: Path) -> list[dict[str, float]]:
-    """metrics.csv of a run directory, one dict of numbers per evaluation; ValueError naming the file."""
-    return read_csv(run_dir / "metrics.csv", METRIC_COLUMNS)
 
 
 def read_start_weights(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -27,12 +27,11 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from lava_bridge_mj.eval.analysis.summary import read_metrics
 from lava_bridge_mj.eval.training.atomic import atomic_write, nearest_existing
 from lava_bridge_mj.eval.training.checksums import checksum_file
 from lava_bridge_mj.eval.training.config import RunConfig
 from lava_bridge_mj.eval.training.run_files import (EPISODE_LOG, PLAIN_EPISODE_LOG, DamagedFileError, episode_log_file,
-                                                    gzip_bytes, read_config)
+                                                    gzip_bytes, read_config, read_metrics)
 
 CHECKSUMS = checksum_file("metrics.csv").name
 COMPACT_FILES = ("provenance.json", "metrics.csv", EPISODE_LOG, "start_weights.npz", CHECKSUMS, "config.json")

@@ -48,8 +48,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import lava_bridge_mj
-from lava_bridge_mj.eval.arguments import (apply_settings, check_writable, config_source, demo_set, device, directory,
-                                           parse_seeds, positive_int, read_config_file, setting, signal_of,
+from lava_bridge_mj.eval.arguments import (MAX_SEEDS, apply_settings, check_writable, config_source, demo_set, device,
+                                           directory, positive_int, read_config_file, seed_list, setting, signal_of,
                                            stop_reason, stopping_on_signals, usable_cpus)
 from lava_bridge_mj.demos import MINARI_PREFIX
 from lava_bridge_mj.eval.training.config import METHODS, RunConfig, check_batch_fits
@@ -66,8 +66,6 @@ LOCK_WAIT = 60.0
 writing its last checkpoint) before starting its jobs, which then fail on a directory still in use."""
 PROGRESS_EVERY = 60.0
 """Seconds between the sweep's progress lines, by default."""
-MAX_SEEDS = 1000
-"""Most seeds one --seeds list may name: a typo such as 0-99999999 is refused instead of planning for hours."""
 
 
 def split(seeds: Sequence[int], parts: int) -> list[tuple[int, ...]]:
@@ -109,21 +107,6 @@ def wait_for_writers(directories: Sequence[Path], timeout: float, poll: float = 
 
 
 # --- the command -------------------------------------------------------------------------------------
-def seed_list(text: str) -> list[int]:
-    """An argparse type: parse_seeds' list ('0-24', '0,3,5-7'), refused beyond MAX_SEEDS seeds before
-    it is built."""
-    count = 0
-    for part in text.split(","):
-        low, dash, high = part.strip().partition("-")
-        try:
-            count += int(high) - int(low) + 1 if dash else 1
-        except ValueError:
-            break  # parse_seeds names the malformed part
-    if count > MAX_SEEDS:
-        raise argparse.ArgumentTypeError(f"expected at most {MAX_SEEDS:,} seeds, got {count:,} in {text!r}")
-    return parse_seeds(text)
-
-
 def _error(message: str) -> int:
     """An environment failure (not a usage error): one line, exit code 2."""
     print(f"lava-bridge-bench sweep: error: {message}", file=sys.stderr, flush=True)

@@ -47,7 +47,7 @@ import os
 import shutil
 import zipfile
 import zlib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -55,7 +55,8 @@ from typing import Any
 import numpy as np
 
 from lava_bridge_mj.eval.training.atomic import atomic_write, atomic_write_text, remove_stale_temporaries
-from lava_bridge_mj.eval.training.checksums import CHECKSUM_SUFFIX, DamagedFileError, content_digest, write_checked
+from lava_bridge_mj.eval.training.checksums import (CHECKSUM_SUFFIX, DamagedFileError, content_digest, read_checked,
+                                                    write_checked)
 
 CHECKPOINTS = ("checkpoint.pt", "checkpoint.prev.pt")
 """The latest checkpoint and the one before it (a resume falls back to it when the latest is damaged)."""
@@ -131,6 +132,42 @@ def read_config(directory: Path) -> dict[str, Any] | None:
     if not isinstance(values, dict):
         raise DamagedFileError(f"{path} does not hold a run configuration (a JSON object)")
     return values
+
+
+METRIC_COLUMNS = ("step", "success_p0", "success_ood")
+"""The metrics.csv columns every reader needs (of METRIC_FIELDS, which the trainer writes)."""
+
+
+def read_csv(path: Path, columns: tuple[str, ...],
+             read: Callable[[Path], bytes] = read_checked) -> list[dict[str, float]]:
+    """The rows of a CSV file of numbers as dicts, its bytes from `read` (`read_checked`, or
+    `read_episode_log` for an episode log); ValueError naming the file (and the line) when it
+    cannot be read, does not match its checksum file (where it has one: eval/training/checksums.py), lacks one
+    of `columns`, or holds something other than numbers."""
+    try:
+        with io.StringIO(read(path).decode(), newline="") as f:
+            reader = csv.DictReader(f)
+            missing = [name for name in columns if name not in (reader.fieldnames or ())]
+            if missing:
+                raise ValueError(f"{path} is not a table as the trainer writes it: no column {', '.join(missing)}")
+            rows = []
+            for row in reader:
+                try:
+                    if None in row or None in row.values():
+                        raise ValueError("a row with another number of fields than the header")
+                    rows.append({name: float(value) for name, value in row.items()})
+                except ValueError as error:
+                    raise ValueError(f"{path} line {reader.line_num}: {error}") from None
+            return rows
+    except OSError as error:
+        raise ValueError(f"{path} cannot be read: {error.strerror or error}") from None
+    except (UnicodeDecodeError, csv.Error) as error:
+        raise ValueError(f"{path} is not a CSV table of numbers ({error})") from None
+
+
+def read_metrics(run_dir: Path) -> list[dict[str, float]]:
+    """metrics.csv of a run directory, one dict of numbers per evaluation; ValueError naming the file."""
+    return read_csv(run_dir / "metrics.csv", METRIC_COLUMNS)
 
 
 def write_config(directory: Path, values: dict[str, Any]) -> None:
