@@ -34,7 +34,7 @@ main-budget: setup
 	$(BIN)/lava-bridge-bench sweep --methods auxss,sac --seeds 0-4 --steps 80000 --eval-every 5000 --workers 2 \
 	    --out runs/main_budget
 	$(BIN)/lava-bridge-bench export runs/main_budget results/main_budget
-	$(BIN)/python -m lava_bridge_mj.eval.doc_tables
+	$(BIN)/python -m lava_bridge_mj.eval.analysis.doc_tables
 
 expert-video: setup
 	$(BIN)/python -m lava_bridge_mj.eval.video --expert --out runs/expert.mp4

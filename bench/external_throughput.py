@@ -27,7 +27,7 @@ import torch
 
 from lava_bridge_mj import make_task_env
 from lava_bridge_mj.agents.sac import SACConfig
-from lava_bridge_mj.eval.runner import RunConfig, train
+from lava_bridge_mj.eval.training.runner import RunConfig, train
 
 ROOT = Path(__file__).resolve().parent.parent
 ENV_ID = "PointMaze_Medium-v3"

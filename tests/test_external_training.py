@@ -15,7 +15,7 @@ from lava_bridge_mj import EXTERNAL_TASKS, RunConfig, load_demos, make_task_env
 from lava_bridge_mj.agents.rfcl import FORWARD_SEEDS, p0_states
 from lava_bridge_mj.demos import SHIPPED_SEEDS, SHIPPED_SIZES, content_hash, generate_task_demos
 from lava_bridge_mj.eval.cli import main as cli_main
-from lava_bridge_mj.eval.run_files import EPISODE_LOG
+from lava_bridge_mj.eval.training.run_files import EPISODE_LOG
 from lava_bridge_mj.state_vector import ResetToStateVectorEnv
 
 pytest.importorskip("gymnasium_robotics")
@@ -158,7 +158,7 @@ def test_a_run_on_a_task_renders_its_video(medium_runs, tmp_path, capsys):
 
 
 def test_a_sweep_takes_a_task_by_id(tmp_path, capsys):
-    from lava_bridge_mj.eval import sweep
+    from lava_bridge_mj.eval.sweeps import sweep
 
     config = tmp_path / "tiny.json"
     config.write_text(json.dumps({"demo_subset": 20, "sac": {"hidden_sizes": [16, 16], "batch_size": 32,

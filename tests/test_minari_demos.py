@@ -14,7 +14,7 @@ import lava_bridge_mj
 from lava_bridge_mj import RunConfig, ResetToState, load_demos, train
 from lava_bridge_mj.demos import content_hash, load_minari_demos, minari_dataset_id, minari_dataset_path, to_minari
 from lava_bridge_mj.eval.cli import main as cli_main
-from lava_bridge_mj.eval.run_files import RunDirectoryError
+from lava_bridge_mj.eval.training.run_files import RunDirectoryError
 
 minari = pytest.importorskip("minari")
 h5py = pytest.importorskip("h5py")
@@ -187,7 +187,7 @@ def test_cli_trains_from_minari_and_refuses_a_missing_dataset_with_exit_2(minari
 
 
 def test_sweep_runs_from_minari_go_to_the_dataset_name(minari_root, tmp_path):
-    from lava_bridge_mj.eval.sweep import main as sweep_main
+    from lava_bridge_mj.eval.sweeps.sweep import main as sweep_main
 
     to_minari(500)
     assert sweep_main(["--methods", "sac", "--seeds", "0", "--steps", "100", "--eval-every", "100",

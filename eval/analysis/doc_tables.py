@@ -34,7 +34,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from lava_bridge_mj.eval import statistics
+from lava_bridge_mj.eval.analysis import statistics
 from lava_bridge_mj.eval.arguments import format_seeds
 
 ROOT = Path(__file__).resolve().parents[2]
