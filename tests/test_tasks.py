@@ -43,8 +43,9 @@ def test_suite_starts_with_the_unchanged_reference_task():
 
 
 def test_the_study_trains_every_method_once_on_every_task_of_the_suite_and_on_no_other():
-    # the Makefile's study target is the one place its commands live; SUITE names its tasks for Python
-    cells = [(env, method, sweep["--steps"]) for sweep in makefile_sweeps("study")
+    # the Makefile's study targets (study, and study-rfcl for RFCL's two methods) are the one place their
+    # commands live; SUITE names its tasks for Python
+    cells = [(env, method, sweep["--steps"]) for target in ("study", "study-rfcl") for sweep in makefile_sweeps(target)
              for env in sweep["--envs"].split(",") for method in sweep["--methods"].split(",")]
     assert len(cells) == len(set(cells))
     methods = {method for _, method, _ in cells}
