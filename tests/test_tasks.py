@@ -8,6 +8,7 @@ tests/test_vector_env.py; this file holds what is specific to the suite.
 from __future__ import annotations
 
 import json
+import re
 import types
 from importlib import resources
 
@@ -21,6 +22,7 @@ import lava_bridge_mj
 from lava_bridge_mj import (TASKS, Layout, LavaBridgeEnv, LavaBridgeVectorEnv, ScriptedExpert, load_demos, pictures,
                             task_layout)
 from lava_bridge_mj.demos import MANIFEST, SHIPPED_SEEDS, SHIPPED_SIZES, content_hash, demo_file, generate_demos
+from lava_bridge_mj.external import EXTERNAL_TASKS
 from lava_bridge_mj.eval.analysis import report_groups
 from lava_bridge_mj.layout import Box2D, _uncovered
 from lava_bridge_mj.mjcf import VIEW_ASPECT
@@ -88,7 +90,7 @@ def test_unknown_task_ids_are_refused_naming_the_known_ones(env_id):
     known = r"expected one of \['LavaBridge-v0', 'LavaBridgeLong-v0', 'LavaBridgeNarrow-v0'"
     with pytest.raises(ValueError, match=rf"unknown Lava Bridge task {env_id!r}; {known}"):
         task_layout(env_id)
-    with pytest.raises(ValueError, match="unknown Lava Bridge task"):
+    with pytest.raises(ValueError, match=rf"no shipped demo sets for {re.escape(repr(env_id))}; {known}"):
         load_demos(500, env_id=env_id)
 
 
@@ -123,7 +125,7 @@ def test_expert_succeeds_on_every_task(env_id, start):
 @pytest.mark.parametrize("env_id", TASK_IDS)
 def test_every_task_ships_both_sets_recorded_in_the_manifest(env_id):
     manifest = json.loads(ASSETS.joinpath(MANIFEST).read_text())
-    assert list(manifest) == TASK_IDS
+    assert sorted(manifest) == sorted(TASK_IDS + list(EXTERNAL_TASKS))  # the suite's and the external tasks'
     for size in SHIPPED_SIZES:
         entry = manifest[env_id][str(size)]
         assert entry["file"] == demo_file(env_id, size) and entry["seed"] == SHIPPED_SEEDS[size]
