@@ -165,9 +165,9 @@ class RFCLSS(_RFCLStages):
             1/2, 1/4, 1/8, 1/16, 1/16, never past the demonstration's last state; "fixed_point": at t_i.
         handover_solved_fraction: the reverse stage ends once the solved fraction of demonstrations is
             above it (0.9, RFCL's train.py); 0 ends it at the first solved one.
-        forward_states: None, or (k, d) p0 states for the forward stage. A run supplies them: the
-            observations of its probe env's `reset(seed=s)` for s = 0..forward_seeds-1 (the env's state
-            is its observation). None with no probe: the forward stage is the env's own reset.
+        forward_states: None, or (k, d) p0 states for the forward stage. A run supplies them: its
+            probe env's states after `reset(seed=s)` for s = 0..forward_seeds-1 (`p0_states`: the full
+            state where the env reports one, else the observation). None with no probe: the forward stage is the env's own reset.
         forward_seeds: k, how many seeded p0 states the run draws (1,000, RFCL's num_seeds in its
             ManiSkill2, Adroit and MetaWorld configs); unused when `forward_states` are given.
     """

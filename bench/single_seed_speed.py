@@ -29,7 +29,10 @@ PACKAGE_DIRS = {"lava_bridge_mj": "lava_bridge_mj", "agents": "lava_bridge_mj/ag
 TIMED = """
 import sys, time, tempfile, torch
 torch.set_num_threads(1)
-from lava_bridge_mj.eval.training.runner import RunConfig, train
+try:
+    from lava_bridge_mj.eval.training.runner import RunConfig, train
+except ImportError:  # a reference tree from before eval/ was split into rooms
+    from lava_bridge_mj.eval.runner import RunConfig, train
 steps = int(sys.argv[1])
 config = RunConfig.from_dict({"method": "sac", "seed": 0, "steps": steps, "eval_every": steps,
                               "eval_episodes": 1, "sac": {"learning_starts": 1000}})
