@@ -35,9 +35,7 @@ from gymnasium.vector.utils import batch_space
 
 from lava_bridge_mj.checks import check_integer, check_real_array
 from lava_bridge_mj.reset_to_state import ResetToState
-
-VECTOR_RESET_KEYS = ("state", "start", "reset_mask")
-
+from lava_bridge_mj.vector import reset_mask, sub_env_seeds
 
 def env_spec(env_id: str) -> gymnasium.envs.registration.EnvSpec:
     """The registered spec of `env_id`; "module:Id" imports the module first (it registers Id), as
@@ -137,7 +135,7 @@ class ResetToStateVectorEnv(VectorEnv):
 
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None):
         mask, starts = self._parse_reset_options(options or {})  # raises before anything changes
-        seeds = self._seeds(seed)
+        seeds = sub_env_seeds(seed, self.num_envs)
         for i in np.flatnonzero(mask):
             self._reset_one(i, starts[i], seeds[i])
         self.autoreset[mask] = False
@@ -201,18 +199,7 @@ class ResetToStateVectorEnv(VectorEnv):
 
     def _parse_reset_options(self, options: dict[str, Any]) -> tuple[np.ndarray, list]:
         """(which sub-envs reset, each one's start: a start name or a checked full state)."""
-        if not isinstance(options, dict):
-            raise ValueError(f"reset options must be a dict, got {type(options).__name__}")
-        unknown = set(options) - set(VECTOR_RESET_KEYS)
-        if unknown:
-            raise ValueError(f"unknown reset options {sorted(unknown)}; expected some of {VECTOR_RESET_KEYS}")
-        if "state" in options and "start" in options:
-            raise ValueError("reset options 'state' and 'start' conflict: give one")
-        mask = np.ones(self.num_envs, dtype=bool)
-        if "reset_mask" in options:
-            mask = np.asarray(options["reset_mask"])
-            if mask.shape != (self.num_envs,) or mask.dtype != bool:
-                raise ValueError(f"reset_mask must be a bool array of shape ({self.num_envs},), got {options['reset_mask']!r}")
+        mask = reset_mask(options, self.num_envs)
         if "state" in options:
             states = check_real_array("reset option 'state'", options["state"], (self.num_envs, self.state_size),
                                       finite=False)
@@ -222,13 +209,3 @@ class ResetToStateVectorEnv(VectorEnv):
             raise ValueError(f"unknown start {start!r}; this env offers {list(self.start_names)} (an env declares "
                              f"more in its attribute start_names)")
         return mask, [start] * self.num_envs
-
-    def _seeds(self, seed: int | list[int | None] | None) -> list[int | None]:
-        if seed is None:
-            return [None] * self.num_envs
-        if not isinstance(seed, (list, tuple)):
-            seed = check_integer("seed", seed, 0)
-            return [seed + i for i in range(self.num_envs)]  # as SyncVectorEnv seeds its sub-envs
-        if len(seed) != self.num_envs:
-            raise ValueError(f"expected {self.num_envs} seeds, got {len(seed)}")
-        return [None if s is None else check_integer("seed", s, 0) for s in seed]

@@ -40,6 +40,37 @@ from lava_bridge_mj.task_physics import LavaBridgeTask
 VECTOR_RESET_KEYS = ("state", "start", "reset_mask")
 
 
+def reset_mask(options: Any, num_envs: int) -> np.ndarray:
+    """The sub-envs a vector reset with `options` resets (`reset_mask`, default all), after checking the
+    options: a dict of VECTOR_RESET_KEYS, not both 'state' and 'start'. Shared by both vector envs."""
+    if not isinstance(options, dict):
+        raise ValueError(f"reset options must be a dict, got {type(options).__name__}")
+    unknown = set(options) - set(VECTOR_RESET_KEYS)
+    if unknown:
+        raise ValueError(f"unknown reset options {sorted(unknown)}; expected some of {VECTOR_RESET_KEYS}")
+    if "state" in options and "start" in options:
+        raise ValueError("reset options 'state' and 'start' conflict: give one")
+    if "reset_mask" not in options:
+        return np.ones(num_envs, dtype=bool)
+    mask = np.asarray(options["reset_mask"])
+    if mask.shape != (num_envs,) or mask.dtype != bool:
+        raise ValueError(f"reset_mask must be a bool array of shape ({num_envs},), got {options['reset_mask']!r}")
+    return mask
+
+
+def sub_env_seeds(seed: int | list[int | None] | None, num_envs: int) -> list[int | None]:
+    """Each sub-env's reset seed: none, `seed + i` for one seed (as SyncVectorEnv seeds its sub-envs),
+    or one per sub-env."""
+    if seed is None:
+        return [None] * num_envs
+    if not isinstance(seed, (list, tuple)):
+        seed = check_integer("seed", seed, 0)
+        return [seed + i for i in range(num_envs)]
+    if len(seed) != num_envs:
+        raise ValueError(f"expected {num_envs} seeds, got {len(seed)}")
+    return [None if s is None else check_integer("seed", s, 0) for s in seed]
+
+
 class LavaBridgeVectorEnv(VectorEnv):
     """K LavaBridge-v0 envs stepped together; see the module docstring for the semantics.
 
@@ -81,7 +112,7 @@ class LavaBridgeVectorEnv(VectorEnv):
 
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None):
         mask, starts = self._parse_reset_options(options or {})  # raises before anything changes
-        seeds = self._seeds(seed)
+        seeds = sub_env_seeds(seed, self.num_envs)
         for i in np.flatnonzero(mask):
             if seeds[i] is not None:
                 self.rngs[i] = seeding.np_random(seeds[i])[0]
@@ -133,18 +164,7 @@ class LavaBridgeVectorEnv(VectorEnv):
 
     def _parse_reset_options(self, options: dict[str, Any]) -> tuple[np.ndarray, list]:
         """(which sub-envs reset, each one's start: a distribution name or a checked (qpos, qvel))."""
-        if not isinstance(options, dict):
-            raise ValueError(f"reset options must be a dict, got {type(options).__name__}")
-        unknown = set(options) - set(VECTOR_RESET_KEYS)
-        if unknown:
-            raise ValueError(f"unknown reset options {sorted(unknown)}; expected some of {VECTOR_RESET_KEYS}")
-        if "state" in options and "start" in options:
-            raise ValueError("reset options 'state' and 'start' conflict: give one")
-        mask = np.ones(self.num_envs, dtype=bool)
-        if "reset_mask" in options:
-            mask = np.asarray(options["reset_mask"])
-            if mask.shape != (self.num_envs,) or mask.dtype != bool:
-                raise ValueError(f"reset_mask must be a bool array of shape ({self.num_envs},), got {options['reset_mask']!r}")
+        mask = reset_mask(options, self.num_envs)
         if "state" in options:
             # finiteness is checked per reset row below: rows of the other sub-envs are ignored
             states = check_real_array("reset option 'state'", options["state"], (self.num_envs, 4), finite=False)
@@ -152,16 +172,6 @@ class LavaBridgeVectorEnv(VectorEnv):
         else:
             starts = [self.task.check_start_name(options.get("start", "p0"))] * self.num_envs
         return mask, starts
-
-    def _seeds(self, seed: int | list[int | None] | None) -> list[int | None]:
-        if seed is None:
-            return [None] * self.num_envs
-        if not isinstance(seed, (list, tuple)):
-            seed = check_integer("seed", seed, 0)
-            return [seed + i for i in range(self.num_envs)]  # as SyncVectorEnv seeds its sub-envs
-        if len(seed) != self.num_envs:
-            raise ValueError(f"expected {self.num_envs} seeds, got {len(seed)}")
-        return [None if s is None else check_integer("seed", s, 0) for s in seed]
 
     def _observations(self) -> np.ndarray:
         return self.task.observations(self.datas)
