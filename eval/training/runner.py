@@ -176,7 +176,7 @@ class Run:
             self.guide.fit(self.seed_runs[0].demos, getattr(config, config.jsrl.guide).batch_size)
             self.elapsed = time.perf_counter() - start_time
             self.save()  # the guide's training is not repeated by a resume
-        session = (self.step, time.perf_counter())  # where this session's loop began: the sinks' steps/s
+        session = (self.step, time.perf_counter())  # where this process's training loop began: the sinks' steps/s
         seeds = ", ".join(str(s) for s in self.agent.seeds)
         bar = tqdm(total=config.steps, initial=self.step, disable=progress is not True, unit="step",
                    desc=f"{config.method} seed{'s' if len(seed_runs) > 1 else ''} {seeds}", dynamic_ncols=True)

@@ -6,7 +6,7 @@
   `train/NAME` (critic and actor losses, `ent_coef`, the critics' mean Q, the policy's entropy; the
   learner's own for BC and IQL; JSRL's `guide_horizon`), `rollout/ep_rew_mean`, `ep_len_mean` and
   `success_rate` over the seed's last `EPISODE_WINDOW` training episodes, and `time/fps` (loop steps
-  per second since this session began), `time/episodes` and `time/time_elapsed` (the run's seconds);
+  per second since this process started or resumed training), `time/episodes` and `time/time_elapsed` (the run's seconds);
 - at every evaluation: `eval/NAME` for the evaluation's own columns of metrics.csv (`EVAL_COLUMNS`),
   the start strategy's sampling probabilities as a histogram, and, when the run records them, the
   mp4 of the policy's rollouts from p0 and ood.
