@@ -158,9 +158,10 @@ report: setup
 	    --seeds $(STUDY_SEEDS) --all-pairs --out docs/report_reverse_limit
 	$(BIN)/python -m lava_bridge_mj.eval.analysis.doc_tables
 
-# The plain episode logs (episodes.csv) under COMPRESS_DIRS rewritten in place as episodes.csv.gz, the form the
-# trainer writes, each checked to decompress to the bytes it replaces before the plain one goes
-# (eval/training/compress.py). The reports read both forms alike; safe to run again.
+# The plain episode logs (episodes.csv) under COMPRESS_DIRS rewritten in place as episodes.csv.gz, and the
+# uncompressed start_weights.npz as compressed ones: the forms the trainer writes, each checked to hold
+# what it replaces before the old file goes (eval/training/compress.py). The reports read both forms
+# alike; safe to run again.
 COMPRESS_DIRS ?= results
 compress-results: setup
 	$(BIN)/python -m lava_bridge_mj.eval.training.compress $(COMPRESS_DIRS)

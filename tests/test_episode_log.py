@@ -1,11 +1,13 @@
-"""The episode log stored compressed: a deterministic gzip writer, one reader for both forms, the
-in-place conversion of plain logs (eval/training/compress.py), a resumed run from a plain log, and reports
-that read the same from either form."""
+"""Run files stored compressed: the episode log's deterministic gzip writer, one reader for both forms,
+start weights as reproducible compressed .npz, the in-place conversion of both (eval/training/compress.py),
+a resumed run from a plain log, and reports that read the same from either form."""
 
 import gzip
+import io
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from conftest import interrupted_copy
@@ -13,7 +15,7 @@ from test_runner import tiny_config, trained  # noqa: F401 (trained: the module'
 
 from lava_bridge_mj.eval import cli
 from lava_bridge_mj.eval.training import compress, run_files
-from lava_bridge_mj.eval.training.run_files import EPISODE_LOG, PLAIN_EPISODE_LOG
+from lava_bridge_mj.eval.training.run_files import EPISODE_LOG, PLAIN_EPISODE_LOG, START_WEIGHTS, npz_bytes, read_npz
 from lava_bridge_mj.eval.training.runner import train
 from lava_bridge_mj.eval.analysis.summary import EPISODE_COLUMNS
 from lava_bridge_mj.eval.training.run_files import read_csv
@@ -118,6 +120,64 @@ def test_compressing_a_directory_that_is_not_one_exits_2(tmp_path, capsys):
     assert "is not a directory" in capsys.readouterr().err
 
 
+def weights(seed):
+    rng = np.random.default_rng(seed)
+    return {"steps": np.array([1000, 2000]), "states": rng.normal(size=(6, 4)),
+            "probabilities": rng.dirichlet(np.ones(6), size=2)}
+
+
+def test_npz_bytes_are_reproducible_compressed_and_load_to_the_same_arrays():
+    arrays = weights(0)
+    payload = npz_bytes(**arrays)
+    assert payload == npz_bytes(**arrays)  # no timestamp: np.savez_compressed's bytes change by the second
+    assert npz_bytes(**weights(1)) != payload
+    loaded = read_npz(io.BytesIO(payload))
+    assert compress.same_arrays(loaded, arrays)
+    assert not compress.same_arrays(loaded, {**arrays, "steps": arrays["steps"].astype(np.int32)})
+    repeated = {"steps": np.zeros(3000), "states": np.zeros((150, 4)), "probabilities": np.zeros((20, 150))}
+    stored = io.BytesIO()
+    np.savez(stored, **repeated)
+    assert len(npz_bytes(**repeated)) < len(stored.getvalue()) / 20  # deflated, where np.savez stores
+    with pytest.raises(ValueError, match="Object arrays cannot be saved"):
+        npz_bytes(steps=np.array([object()]))
+
+
+def test_compressing_rewrites_start_weights_once_to_the_trainers_bytes(tmp_path, capsys):
+    runs = [tmp_path / "task" / "auxss-d500" / f"seed{seed}" for seed in (0, 1)]
+    for seed, run in enumerate(runs):
+        run.mkdir(parents=True)
+        np.savez(run / START_WEIGHTS, **weights(seed))  # as the trainer wrote them before
+    assert compress.main([str(tmp_path / "task")]) == 0
+    assert "2 start weights" in capsys.readouterr().out
+    for seed, run in enumerate(runs):
+        assert (run / START_WEIGHTS).read_bytes() == npz_bytes(**weights(seed))
+    before = {run: (run / START_WEIGHTS).stat().st_mtime_ns for run in runs}
+    assert compress.main([str(tmp_path / "task")]) == 0  # again: nothing rewritten
+    assert "0 start weights" in capsys.readouterr().out
+    assert {run: (run / START_WEIGHTS).stat().st_mtime_ns for run in runs} == before
+
+
+def test_the_trainer_writes_start_weights_in_the_converted_form(trained):
+    run_dir, _ = trained(tiny_config("auxss"))
+    written = (run_dir / START_WEIGHTS).read_bytes()
+    assert written == npz_bytes(**read_npz(run_dir / START_WEIGHTS))
+
+
+def test_compressing_refuses_damaged_or_unchecked_start_weights_and_leaves_them(tmp_path, monkeypatch, capsys):
+    for seed in (0, 1):
+        (tmp_path / f"seed{seed}").mkdir()
+        np.savez(tmp_path / f"seed{seed}" / START_WEIGHTS, **weights(seed))
+    damaged = tmp_path / "seed0" / START_WEIGHTS
+    damaged.write_bytes(damaged.read_bytes()[:-40])  # cut short: the zip directory is gone
+    originals = {seed: (tmp_path / f"seed{seed}" / START_WEIGHTS).read_bytes() for seed in (0, 1)}
+    monkeypatch.setattr(compress, "npz_bytes", lambda **arrays: npz_bytes(**{**arrays, "steps": arrays["steps"][:1]}))
+    assert compress.main([str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert f"{damaged} is damaged" in err
+    assert f"{tmp_path / 'seed1' / START_WEIGHTS}: its compressed form does not hold the same arrays" in err
+    assert {seed: (tmp_path / f"seed{seed}" / START_WEIGHTS).read_bytes() for seed in (0, 1)} == originals
+
+
 def test_a_run_killed_with_a_plain_log_resumes_to_the_uninterrupted_compressed_log(trained, tmp_path):
     config = tiny_config("auxss")
     full_dir, _ = trained(config)
@@ -141,6 +201,7 @@ def test_a_converted_runs_report_equals_its_report_before_conversion(tmp_path):
         data = run_files.read_episode_log(log)
         log.unlink()
         (runs / f"seed{seed}" / PLAIN_EPISODE_LOG).write_bytes(data)
+        np.savez(runs / f"seed{seed}" / START_WEIGHTS, **read_npz(runs / f"seed{seed}" / START_WEIGHTS))  # as stored before
 
     def report(name):
         assert cli.main(["report", str(tmp_path / "runs"), "--seeds", "10-11", "--out", str(tmp_path / name)]) == 0

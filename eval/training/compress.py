@@ -1,12 +1,14 @@
-"""`python -m lava_bridge_mj.eval.training.compress DIR [DIR ...]`: plain episode logs compressed in place.
+"""`python -m lava_bridge_mj.eval.training.compress DIR [DIR ...]`: run files compressed in place.
 
-Every episodes.csv under each DIR (at any depth) becomes episodes.csv.gz, the form the trainer now
-writes (`run_files.write_episode_log`: deterministic gzip, so a log converted here has the same bytes
-as one the trainer wrote with the same rows). Nothing is lost: the compressed file is checked to
-decompress to exactly the bytes it replaces, once in memory and once as written to disk, before the
-plain one is deleted; a log that fails a check is left as it was, named, and the command exits 1.
-Running it again converts nothing more (a log killed between the two steps, compressed but with its
-plain file still there, is finished: the plain file goes once the compressed one is checked against it).
+Under each DIR (at any depth), every plain episodes.csv becomes episodes.csv.gz and every
+start_weights.npz not already in it takes the form the trainer now writes (`run_files.gzip_bytes`,
+`run_files.npz_bytes`: compressed, with reproducible bytes, so a file converted here has the same bytes
+as one the trainer wrote with the same contents). Nothing is lost: a converted log is checked to
+decompress to exactly the bytes it replaces, and converted weights to hold the same arrays (names,
+dtypes, shapes, bytes), once in memory and once as written to disk, before the old file goes; a file
+that fails a check is left as it was, named, and the command exits 1. Running it again converts nothing
+more (a log killed between the two steps, compressed but with its plain file still there, is finished:
+the plain file goes once the compressed one is checked against it).
 
     python -m lava_bridge_mj.eval.training.compress results/study/LavaBridge-v0     # or: make compress-results
 """
@@ -15,20 +17,40 @@ from __future__ import annotations
 
 import argparse
 import gzip
+import io
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from lava_bridge_mj.eval.training.atomic import atomic_write
-from lava_bridge_mj.eval.training.run_files import EPISODE_LOG, PLAIN_EPISODE_LOG, gzip_bytes, read_episode_log
+import numpy as np
+
+from lava_bridge_mj.eval.training.run_files import (EPISODE_LOG, PLAIN_EPISODE_LOG, START_WEIGHTS, gzip_bytes,
+                                                    npz_bytes, read_episode_log, read_npz)
+
+
+@dataclass
+class Converted:
+    """Files of one kind converted, and their bytes before and after."""
+    files: int = 0
+    bytes_before: int = 0
+    bytes_after: int = 0
+
+    def add(self, before: int, after: int) -> None:
+        self.files += 1
+        self.bytes_before += before
+        self.bytes_after += after
+
+    def __str__(self) -> str:
+        ratio = f" ({self.bytes_after / self.bytes_before:.1%})" if self.bytes_before else ""
+        return f"{self.bytes_before:,} bytes -> {self.bytes_after:,}{ratio}"
 
 
 @dataclass
 class Compressed:
-    """What `compress` did: the logs converted, their bytes before and after, and those it refused."""
-    converted: int = 0
-    plain_bytes: int = 0
-    compressed_bytes: int = 0
+    """What `compress` did: the episode logs and start weights converted, and the files it refused."""
+    logs: Converted = field(default_factory=Converted)
+    weights: Converted = field(default_factory=Converted)
     refused: list[str] = field(default_factory=list)
 
 
@@ -59,25 +81,58 @@ def compress_log(plain: Path, done: Compressed) -> None:
             target.unlink()
             done.refused.append(f"{plain}: {target.name} as written does not read back the same bytes; left plain")
             return
-    done.converted += 1
-    done.plain_bytes += len(data)
-    done.compressed_bytes += target.stat().st_size
+    done.logs.add(len(data), target.stat().st_size)
     plain.unlink()
 
 
+def same_arrays(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> bool:
+    return sorted(a) == sorted(b) and all(a[k].dtype == b[k].dtype and a[k].shape == b[k].shape
+                                          and a[k].tobytes() == b[k].tobytes() for k in a)
+
+
+def compress_weights(path: Path, done: Compressed) -> None:
+    """Rewrite `path` (a start_weights.npz) as `npz_bytes` of its arrays, checked; or refuse, leaving it."""
+    data = path.read_bytes()
+    try:
+        arrays = read_npz(path)
+    except ValueError as error:
+        done.refused.append(f"{error}; left as it is")
+        return
+    payload = npz_bytes(**arrays)
+    if payload == data:  # already in the trainer's form
+        return
+    if not same_arrays(read_npz(io.BytesIO(payload)), arrays):
+        done.refused.append(f"{path}: its compressed form does not hold the same arrays; left as it is")
+        return
+    atomic_write(path, lambda f: f.write(payload))
+    try:
+        same = same_arrays(read_npz(path), arrays)  # what reached the disk
+    except ValueError:
+        same = False
+    if not same:
+        atomic_write(path, lambda f: f.write(data))
+        done.refused.append(f"{path}: as written it does not read back the same arrays; restored as it was")
+        return
+    done.weights.add(len(data), len(payload))
+
+
 def compress(directories: list[Path]) -> Compressed:
-    """Convert every plain episode log under `directories`, in sorted order."""
+    """Convert every plain episode log and every start_weights.npz not yet in the trainer's form under
+    `directories`, in sorted order."""
     done = Compressed()
     for directory in directories:
         for plain in sorted(directory.rglob(PLAIN_EPISODE_LOG)):
             if plain.is_file():
                 compress_log(plain, done)
+        for weights in sorted(directory.rglob(START_WEIGHTS)):
+            if weights.is_file():
+                compress_weights(weights, done)
     return done
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m lava_bridge_mj.eval.training.compress", description=__doc__.splitlines()[0],
-                                     epilog="exits 1 when a log was refused, 2 on bad arguments")
+                                     epilog="exits 1 when a file was refused, 2 on bad arguments")
     parser.add_argument("directories", nargs="+", type=Path, metavar="DIR",
                         help="a directory of run directories (any depth), e.g. results/study/LavaBridge-v0")
     args = parser.parse_args(argv)
@@ -86,14 +141,13 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"DIR {str(directory)!r} is not a directory")
     try:
         done = compress(args.directories)
-    except OSError as error:  # a full disk, a read-only tree: the log being converted is left plain
+    except OSError as error:  # a full disk, a read-only tree: the file being converted is left as it was
         print(f"{parser.prog}: error: {error}", file=sys.stderr)
         return 1
     for refusal in done.refused:
         print(f"refused: {refusal}", file=sys.stderr)
-    ratio = f" ({done.compressed_bytes / done.plain_bytes:.1%})" if done.plain_bytes else ""
-    print(f"compressed {done.converted} episode logs: {done.plain_bytes:,} bytes -> {done.compressed_bytes:,}{ratio}; "
-          f"{len(done.refused)} refused")
+    print(f"compressed {done.logs.files} episode logs: {done.logs}; {done.weights.files} start weights: "
+          f"{done.weights}; {len(done.refused)} refused")
     return 1 if done.refused else 0
 
 

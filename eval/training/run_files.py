@@ -64,7 +64,11 @@ EPISODE_LOG = "episodes.csv.gz"
 """The episode log as the trainer writes it: EPISODE_FIELDS as CSV, gzip-compressed (`gzip_bytes`)."""
 PLAIN_EPISODE_LOG = "episodes.csv"
 """The same CSV uncompressed, as runs wrote it before: still read, and converted by eval/training/compress.py."""
-RUN_FILES = ("config.json", "provenance.json", "metrics.csv", f"metrics.csv{CHECKSUM_SUFFIX}", "start_weights.npz",
+START_WEIGHTS = "start_weights.npz"
+"""The start strategy's candidate states and weights (`write_results`), a compressed .npz (`npz_bytes`)."""
+NPZ_DATE = (1980, 1, 1, 0, 0, 0)
+"""The date of every member of an .npz this package writes: the earliest a zip archive can hold."""
+RUN_FILES = ("config.json", "provenance.json", "metrics.csv", f"metrics.csv{CHECKSUM_SUFFIX}", START_WEIGHTS,
              EPISODE_LOG, PLAIN_EPISODE_LOG, *CHECKPOINTS, "final.pt", "rollouts.mp4")
 """What a run directory holds besides policies/: what --overwrite removes."""
 POLICIES = "policies"
@@ -285,8 +289,8 @@ def write_results(directory: Path, rows: Sequence[dict], steps: np.ndarray, stat
     writer.writeheader()
     writer.writerows(rows)
     write_checked(directory / "metrics.csv", text.getvalue().encode())
-    atomic_write(directory / "start_weights.npz",
-                 lambda f: np.savez(f, steps=steps, states=states, probabilities=probabilities))
+    payload = npz_bytes(steps=steps, states=states, probabilities=probabilities)
+    atomic_write(directory / START_WEIGHTS, lambda f: f.write(payload))
     if episode_log is not None:
         write_episode_log(directory, episode_log)
 
@@ -304,6 +308,30 @@ def gzip_bytes(data: bytes) -> bytes:
     with gzip.GzipFile(filename="", mode="wb", compresslevel=GZIP_LEVEL, fileobj=buffer, mtime=0) as f:
         f.write(data)
     return buffer.getvalue()
+
+
+def npz_bytes(**arrays: np.ndarray) -> bytes:
+    """`arrays` as an .npz archive that `np.load` reads, deflate-compressed and reproducible: every
+    member carries a fixed date (`np.savez_compressed` stamps the current time), so the same arrays
+    always give the same bytes with one zlib. Pickled objects are refused."""
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as archive:
+        for name, array in arrays.items():
+            member = io.BytesIO()
+            np.lib.format.write_array(member, np.asanyarray(array), allow_pickle=False)
+            archive.writestr(zipfile.ZipInfo(f"{name}.npy", date_time=NPZ_DATE), member.getvalue(),
+                             compress_type=zipfile.ZIP_DEFLATED, compresslevel=GZIP_LEVEL)
+    return buffer.getvalue()
+
+
+def read_npz(path: Path | io.BytesIO) -> dict[str, np.ndarray]:
+    """Every array of an .npz file, pickles refused; ValueError naming the file when it cannot be read."""
+    try:
+        with np.load(path) as saved:
+            return {key: saved[key] for key in saved.files}
+    except Exception as error:  # noqa: BLE001 - a damaged file fails in many ways (BadZipFile, EOFError, ...)
+        reason = (str(error).splitlines() or [""])[0]
+        raise ValueError(f"{path} is damaged ({type(error).__name__}: {reason})") from None
 
 
 def episode_log_text(rows: Sequence[tuple]) -> bytes:
