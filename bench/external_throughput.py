@@ -1,12 +1,12 @@
 """SAC training throughput on an external task: this package's trainer at K = 1 and 25 seeds per
 process against Stable-Baselines3's SAC on one seed, side by side in one run, on PointMaze_Medium-v3.
 
-As bench/sac_throughput.py on Lava Bridge: all train from p0 with one gradient update per env step,
-batch 256, a 10,000-transition buffer, the same hidden sizes, on the CPU with the same torch thread
-count; each is warmed up past its learning start, then timed over the next N steps. The figure is
-aggregate seed-steps per second: env steps x seeds / wall time, everything included (env steps,
-replay sampling, updates; for this package's trainer one evaluation episode from p0 and one from ood
-at the end). SB3 trains on `make_task_env`'s env with its Dict observation flattened
+As bench/sac_throughput.py on Lava Bridge, timed by its functions: all train from p0 with one
+gradient update per env step, batch 256, a 10,000-transition buffer, the same hidden sizes, on the
+CPU with the same torch thread count; each is warmed up past its learning start, then timed over the
+next N steps. The figure is aggregate seed-steps per second: env steps x seeds / wall time,
+everything included (env steps, replay sampling, updates; for this package's trainer one evaluation
+episode from p0 and one from ood at the end). SB3 trains on `make_task_env`'s env with its Dict observation flattened
 (gymnasium's FlattenObservation), as this package's trainer sees it.
 
     python bench/external_throughput.py      # writes results/bench/external_throughput.txt
@@ -18,47 +18,16 @@ from __future__ import annotations
 
 import argparse
 import platform
-import tempfile
-import time
 from pathlib import Path
 
 import gymnasium
 import torch
 
 from lava_bridge_mj import make_task_env
-from lava_bridge_mj.agents.sac import SACConfig
-from lava_bridge_mj.eval.training.runner import RunConfig, train
+from sac_throughput import BATCH, ours, stable_baselines3  # bench/ is on sys.path when this script runs
 
 ROOT = Path(__file__).resolve().parent.parent
 ENV_ID = "PointMaze_Medium-v3"
-LEARNING_STARTS = 1000
-BATCH = 256
-
-
-def ours(hidden: int, seeds: int, steps: int) -> float:
-    sac = SACConfig(hidden_sizes=(hidden, hidden), batch_size=BATCH, buffer_size=10_000,
-                    learning_starts=LEARNING_STARTS)
-    warmup = LEARNING_STARTS + 200
-    config = RunConfig(env_id=ENV_ID, method="sac", steps=warmup, eval_every=10**9, eval_episodes=1, sac=sac)
-    with tempfile.TemporaryDirectory() as out:
-        run = train(config, [Path(out) / f"seed{s}" for s in range(seeds)], seeds=range(seeds), progress=False)
-        run.config.steps = warmup + steps  # the configs share the stopping point through run.config
-        start = time.perf_counter()
-        run.train(progress=False)
-        return seeds * steps / (time.perf_counter() - start)
-
-
-def stable_baselines3(hidden: int, steps: int) -> float:
-    from stable_baselines3 import SAC
-
-    env = gymnasium.wrappers.FlattenObservation(make_task_env(ENV_ID))
-    model = SAC("MlpPolicy", env, policy_kwargs={"net_arch": [hidden, hidden]}, buffer_size=10_000,
-                batch_size=BATCH, learning_starts=LEARNING_STARTS, train_freq=1, gradient_steps=1,
-                device="cpu", seed=0, verbose=0)
-    model.learn(LEARNING_STARTS + 200)
-    start = time.perf_counter()
-    model.learn(steps, reset_num_timesteps=False)
-    return steps / (time.perf_counter() - start)
 
 
 def main() -> None:
@@ -77,12 +46,14 @@ def main() -> None:
              "| hidden | trainer | seed-steps/s | x SB3 | x K=1 |", "|---|---|---|---|---|"]
     print("\n".join(lines))
     for hidden in args.hidden:
-        sb3 = stable_baselines3(hidden, args.steps)
+        sb3 = stable_baselines3(gymnasium.wrappers.FlattenObservation(make_task_env(ENV_ID)), hidden, args.steps)
+        if sb3 is None:
+            raise SystemExit("bench/external_throughput.py needs stable-baselines3: pip install stable-baselines3")
         lines.append(f"| {hidden} | SB3 SAC | {sb3:.0f} | 1.00 | |")
         print(lines[-1])
         single = None
         for k in args.seeds:
-            rate = ours(hidden, k, args.steps)
+            rate = ours(hidden, k, args.steps, ENV_ID)
             single = single or rate
             lines.append(f"| {hidden} | ours K={k} | {rate:.0f} | {rate / sb3:.2f} | {rate / single:.2f} |")
             print(lines[-1], flush=True)

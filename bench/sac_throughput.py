@@ -55,12 +55,13 @@ def matmul_flops_per_second(size: int = 1024, repeats: int = 20) -> float:
     return 2.0 * size**3 * repeats / (time.perf_counter() - start)
 
 
-def ours(hidden: int, seeds: int, steps: int) -> float:
+def ours(hidden: int, seeds: int, steps: int, env_id: str = lava_bridge_mj.ENV_ID) -> float:
+    """This package's trainer on task `env_id`, `seeds` seeds in one process: seed-steps per second."""
     sac = SACConfig(hidden_sizes=(hidden, hidden), batch_size=BATCH, buffer_size=10_000,
                     learning_starts=LEARNING_STARTS)
     warmup = LEARNING_STARTS + 200
     # one evaluation episode per start distribution, at the very end: a small, counted cost
-    config = RunConfig(method="sac", steps=warmup, eval_every=10**9, eval_episodes=1, sac=sac)
+    config = RunConfig(env_id=env_id, method="sac", steps=warmup, eval_every=10**9, eval_episodes=1, sac=sac)
     with tempfile.TemporaryDirectory() as out:
         run = train(config, [Path(out) / f"seed{s}" for s in range(seeds)], seeds=range(seeds), progress=False)
         run.config.steps = warmup + steps  # the configs share the stopping point through run.config
@@ -69,12 +70,13 @@ def ours(hidden: int, seeds: int, steps: int) -> float:
         return seeds * steps / (time.perf_counter() - start)
 
 
-def stable_baselines3(hidden: int, steps: int) -> float | None:
+def stable_baselines3(env: gymnasium.Env, hidden: int, steps: int) -> float | None:
+    """Stable-Baselines3's SAC on `env`, one seed, with the same settings: steps per second; None
+    without stable-baselines3."""
     try:
         from stable_baselines3 import SAC
     except ImportError:
         return None
-    env = gymnasium.make(lava_bridge_mj.ENV_ID)
     model = SAC("MlpPolicy", env, policy_kwargs={"net_arch": [hidden, hidden]}, buffer_size=10_000,
                 batch_size=BATCH, learning_starts=LEARNING_STARTS, train_freq=1, gradient_steps=1,
                 device="cpu", seed=0, verbose=0)
@@ -101,7 +103,7 @@ def main() -> None:
           f"{steps} timed steps, batch {BATCH}, one update per step | matmul {peak / 1e9:.1f} GFLOP/s")
     print(f"{'hidden':>7} {'trainer':>12} {'seed-steps/s':>13} {'x SB3':>7} {'x K=1':>7} {'of matmul':>10}")
     for hidden in hiddens:
-        sb3 = stable_baselines3(hidden, steps)
+        sb3 = stable_baselines3(gymnasium.make(lava_bridge_mj.ENV_ID), hidden, steps)
         if sb3 is not None:
             print(f"{hidden:>7} {'SB3 SAC':>12} {sb3:>13.0f} {1.0:>7.2f} {'':>7} "
                   f"{sb3 * update_flops(hidden) / peak:>10.1%}")
