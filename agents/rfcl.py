@@ -36,7 +36,27 @@ FORWARD_SEEDS = 1000
 
 
 class _RFCLStages(ReverseCurriculumSS):
-    """What `RFCLReverseSS` and `RFCLSS` share: RFCL's start spread around t_i and its hand-over."""
+    """What `RFCLReverseSS` and `RFCLSS` share: RFCL's start spread around t_i and its hand-over.
+
+    Args:
+        states: (n, d) demonstration states, of any length d: whole trajectories, each in time order, whose
+            last state is one step before the goal (`goal_reaching_demos` gives them from a demo set).
+        episode_ids: (n,) integers, the demonstration each state belongs to; each demonstration's
+            states are contiguous. A run supplies its candidates' episode ids.
+        per_demo_buffer_size: m, the outcomes a demonstration remembers from its t_i (3, RFCL's
+            ManiSkill2, Adroit and MetaWorld configs).
+        reverse_step_size: how many states t_i moves back each time (4, RFCL's ManiSkill2 configs;
+            its Adroit and MetaWorld configs use 8).
+        demo_sampler: "remaining" (RFCL's): demonstration i drawn with probability proportional to
+            t_i / T_i, 1e-6 at t_i = 0; "uniform" draws each equally often.
+        demo_horizon_to_max_steps_ratio: the time limit's divisor (3, RFCL's ManiSkill2 and Adroit
+            configs; MetaWorld's use 1); None keeps the env's limit for every episode.
+        max_steps_min: the time limit's constant (16, RFCL's InitialStateWrapper).
+        start_step_sampler: "geometric" (RFCL's configs): start at t_i + k, k = 0..4 with probabilities
+            1/2, 1/4, 1/8, 1/16, 1/16, never past the demonstration's last state; "fixed_point": at t_i.
+        handover_solved_fraction: the reverse stage ends once the solved fraction of demonstrations is
+            above it (0.9, RFCL's train.py); 0 ends it at the first solved one.
+    """
 
     def __init__(self, states: Any, episode_ids: Any, per_demo_buffer_size: int, reverse_step_size: int,
                  demo_sampler: str, demo_horizon_to_max_steps_ratio: float | None, max_steps_min: int,
@@ -101,25 +121,6 @@ class RFCLReverseSS(_RFCLStages):
     solved, the reverse stage is over for good (`phase` "p0"): episodes start from the env's own reset
     (`NO_STATE`) with the env's limit, RFCL's second stage without its forward curriculum (`rfcl` adds
     that).
-
-    Args:
-        states: (n, d) demonstration states, of any length d: whole trajectories, each in time order, whose
-            last state is one step before the goal (`goal_reaching_demos` gives them from a demo set).
-        episode_ids: (n,) integers, the demonstration each state belongs to; each demonstration's
-            states are contiguous. A run supplies its candidates' episode ids.
-        per_demo_buffer_size: m, the outcomes a demonstration remembers from its t_i (3, RFCL's
-            ManiSkill2, Adroit and MetaWorld configs).
-        reverse_step_size: how many states t_i moves back each time (4, RFCL's ManiSkill2 configs;
-            its Adroit and MetaWorld configs use 8).
-        demo_sampler: "remaining" (RFCL's): demonstration i drawn with probability proportional to
-            t_i / T_i, 1e-6 at t_i = 0; "uniform" draws each equally often.
-        demo_horizon_to_max_steps_ratio: the time limit's divisor (3, RFCL's ManiSkill2 and Adroit
-            configs; MetaWorld's use 1); None keeps the env's limit for every episode.
-        max_steps_min: the time limit's constant (16, RFCL's InitialStateWrapper).
-        start_step_sampler: "geometric" (RFCL's configs): start at t_i + k, k = 0..4 with probabilities
-            1/2, 1/4, 1/8, 1/16, 1/16, never past the demonstration's last state; "fixed_point": at t_i.
-        handover_solved_fraction: the reverse stage ends once the solved fraction of demonstrations is
-            above it (0.9, RFCL's train.py); 0 ends it at the first solved one.
     """
 
     name = "rfcl_reverse"
@@ -148,23 +149,6 @@ class RFCLSS(_RFCLStages):
     draws since its last. Those episodes keep the env's step limit.
 
     Args:
-        states: (n, d) demonstration states, of any length d: whole trajectories, each in time order, whose
-            last state is one step before the goal (`goal_reaching_demos` gives them from a demo set).
-        episode_ids: (n,) integers, the demonstration each state belongs to; each demonstration's
-            states are contiguous. A run supplies its candidates' episode ids.
-        per_demo_buffer_size: m, the outcomes a demonstration remembers from its t_i (3, RFCL's
-            ManiSkill2, Adroit and MetaWorld configs).
-        reverse_step_size: how many states t_i moves back each time (4, RFCL's ManiSkill2 configs;
-            its Adroit and MetaWorld configs use 8).
-        demo_sampler: "remaining" (RFCL's): demonstration i drawn with probability proportional to
-            t_i / T_i, 1e-6 at t_i = 0; "uniform" draws each equally often.
-        demo_horizon_to_max_steps_ratio: the time limit's divisor (3, RFCL's ManiSkill2 and Adroit
-            configs; MetaWorld's use 1); None keeps the env's limit for every episode.
-        max_steps_min: the time limit's constant (16, RFCL's InitialStateWrapper).
-        start_step_sampler: "geometric" (RFCL's configs): start at t_i + k, k = 0..4 with probabilities
-            1/2, 1/4, 1/8, 1/16, 1/16, never past the demonstration's last state; "fixed_point": at t_i.
-        handover_solved_fraction: the reverse stage ends once the solved fraction of demonstrations is
-            above it (0.9, RFCL's train.py); 0 ends it at the first solved one.
         forward_states: None, or (k, d) p0 states for the forward stage. A run supplies them: its
             probe env's states after `reset(seed=s)` for s = 0..forward_seeds-1 (`p0_states`: the full
             state where the env reports one, else the observation). None with no probe: the forward stage is the env's own reset.

@@ -79,9 +79,10 @@ class StartStrategy:
 
     A subclass is also its own declaration for building it by name (agents/strategy_registry.py):
     `name`, `description` and `candidates` below; its keyword parameters, with their defaults, are
-    its constructor's (`parameters`), documented in its docstring's Args; `fill_params` takes from a
-    run what the parameters leave unset. Registering the class makes it a strategy of
-    `make_start_strategy`, of the CLI's `--method` and of a config's `strategy` section.
+    its constructor's (`parameters`), documented in its docstring's Args or, for one it shares with a
+    base class, in the base's; `fill_params` takes from a run what the parameters leave unset.
+    Registering the class makes it a strategy of `make_start_strategy`, of the CLI's `--method` and of
+    a config's `strategy` section.
     """
 
     name = ""

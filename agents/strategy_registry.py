@@ -3,9 +3,10 @@
 
 A strategy is declared by its class alone (a `StartStrategy` subclass, agents/start_strategies.py):
 its `name`, `description` and `candidates`; its keyword parameters with their defaults, the
-constructor's signature (`parameters`), documented in the class docstring's Args; and what a run
-supplies to it (`fill_params`). `STRATEGIES` maps each name to its class, in the order the CLI lists
-them; agents/methods.py makes each a training method, SAC from its starts.
+constructor's signature (`parameters`), documented in the class docstring's Args (a parameter it does
+not document there takes the entry of the nearest base class that does); and what a run supplies to
+it (`fill_params`). `STRATEGIES` maps each name to its class, in the order the CLI lists them;
+agents/methods.py makes each a training method, SAC from its starts.
 
 Adding a strategy, e.g. "my_ss" (files touched: agents/my_ss.py, new, and this file):
 
@@ -79,7 +80,8 @@ class StrategyParameter:
     default: Any
     """The constructor's default (`inspect.Parameter.empty`: required)."""
     doc: str
-    """Its entry under Args in the class docstring ("" when it has none)."""
+    """Its entry under Args in the class docstring, or in the nearest base class's that has one ("" when
+    none has)."""
     from_config: bool
     """Whether a config (`RunConfig.strategy`, `--set strategy.NAME=`) may set it."""
 
@@ -90,11 +92,23 @@ def strategy_parameters(name: str) -> tuple[StrategyParameter, ...]:
     docs: dict[str, str] = {}
     defaults: dict[str, Any] = {}
     for constructor in cls.constructors():
-        docs = {**_args_docs(inspect.getdoc(constructor) or ""), **docs}  # the first one's docs win
+        docs = {**_documented_args(constructor), **docs}  # the first one's docs win
         defaults = {**{p.name: p.default for p in inspect.signature(constructor).parameters.values()}, **defaults}
     return tuple(StrategyParameter(parameter, defaults.get(parameter, inspect.Parameter.empty),
                                    docs.get(parameter, ""), parameter not in cls.run_supplied)
                  for parameter in cls.parameters())
+
+
+def _documented_args(constructor: Any) -> dict[str, str]:
+    """name -> doc of each parameter under Args in `constructor`'s docstring; for a class, in its own
+    and every base class's docstring, the nearest class in the method resolution order winning, so a
+    subclass documents only the parameters it adds or explains anew."""
+    if not isinstance(constructor, type):
+        return _args_docs(inspect.getdoc(constructor) or "")
+    docs: dict[str, str] = {}
+    for owner in reversed(constructor.__mro__):  # object first, the class itself last: its entries win
+        docs.update(_args_docs(inspect.cleandoc(vars(owner).get("__doc__") or "")))
+    return docs
 
 
 def _args_docs(docstring: str) -> dict[str, str]:

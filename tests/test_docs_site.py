@@ -101,6 +101,11 @@ def test_the_api_reference_renders_the_start_strategies_from_their_docstrings(si
     assert "Reset the wrapped env to strategy.states[strategy.sample(rng)] and feed episode lengths back." in text
     assert "Build a start strategy by its CLI name" in text
     assert "delta float floor on W[i]" in text, "AuxSS's parameter table is missing"
+    # the RFCL strategies' shared parameters, documented once on their common base class, in both tables
+    for name, end in (("RFCLReverseSS", 'id="lava_bridge_mj.agents.RFCLSS"'),
+                      ("RFCLSS", 'id="lava_bridge_mj.agents.SACConfig"')):
+        entry = text_of(dom[dom.index(f'id="lava_bridge_mj.agents.{name}"'):dom.index(end)])
+        assert "per_demo_buffer_size int m, the outcomes a demonstration remembers from its t_i (3" in entry, name
 
 
 def test_the_api_reference_renders_training_and_the_environment(site):

@@ -15,6 +15,7 @@ from lava_bridge_mj.agents import strategy_registry
 from lava_bridge_mj.agents.auxss import AuxSS
 from lava_bridge_mj.agents.goaldist_ss import GoalDistSS
 from lava_bridge_mj.agents.methods import METHODS
+from lava_bridge_mj.agents.rfcl import RFCLReverseSS, RFCLSS, _RFCLStages
 from lava_bridge_mj.agents.start_state_wrapper import StartStateWrapper
 from lava_bridge_mj.agents.start_strategies import NO_STATE, StartStrategy, StrategyContext
 from lava_bridge_mj.agents.strategy_registry import (
@@ -277,6 +278,43 @@ def test_a_new_strategy_is_one_class_and_one_registration(monkeypatch):
         make_start_strategy("toy_ss", states, first=4.0)
     with pytest.raises(ValueError, match="'toy_ss' is already registered"):
         register(ToySS)
+
+
+class ToyChildSS(ToySS):
+    """The toy strategy with a second weighted state: it documents only the parameters it adds or
+    explains anew.
+
+    Args:
+        second_weight: the second state's weight, > 0.
+        states: (n, d) candidate start states, at least two.
+    """
+
+    name = "toy_child_ss"
+
+    def __init__(self, states, first_weight=3.0, second_weight=2.0):
+        super().__init__(states, first_weight)
+        self._weights[1] = second_weight
+
+
+def test_a_subclass_documents_only_what_it_adds_and_inherits_the_rest(monkeypatch):
+    monkeypatch.setattr(strategy_registry, "STRATEGIES", dict(STRATEGIES))
+    register(ToyChildSS)
+    docs = {p.name: (p.default, p.doc) for p in strategy_parameters("toy_child_ss")}
+    # first_weight: the parent's entry with the child's default; second_weight: the child's own
+    assert docs == {"first_weight": (3.0, "the first state's weight, > 0; every other state's is 1."),
+                    "second_weight": (2.0, "the second state's weight, > 0.")}
+    assert strategy_registry._documented_args(ToyChildSS)["states"] == "(n, d) candidate start states, at least two."
+    assert strategy_registry._documented_args(ToySS)["states"] == "(n, d) candidate start states."
+
+
+def test_the_rfcl_strategies_share_one_documentation_of_their_common_parameters():
+    reverse, full = ({p.name: p.doc for p in strategy_parameters(name)} for name in ("rfcl_reverse", "rfcl"))
+    assert set(reverse) < set(full) and all(full[name] == doc for name, doc in reverse.items())
+    assert reverse["per_demo_buffer_size"].startswith("m, the outcomes a demonstration remembers from its t_i (3")
+    # written once, on the class both inherit from, and not on either of them
+    assert "per_demo_buffer_size:" in _RFCLStages.__doc__
+    assert "per_demo_buffer_size:" not in RFCLReverseSS.__doc__ and "per_demo_buffer_size:" not in RFCLSS.__doc__
+    assert "forward_seeds:" in RFCLSS.__doc__
 
 
 @pytest.mark.parametrize("attributes, match", [
