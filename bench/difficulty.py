@@ -15,8 +15,13 @@ table, each seed's best success from p0 / ood over its evaluations and the share
 episodes that reached the goal; `--sac-runs DIR --sac-only` prints just that table, in seconds
 (tests/test_results_docs.py checks results/suite/difficulty.md against it).
 
+`--json FILE` also writes every figure printed, per task, as JSON (the settings, the command and the
+commit beside them, no timing: the same command gives the same file), which docs/environment.md's
+LavaBridge-v0 section is generated from (results/suite/difficulty_LavaBridge-v0.json).
+
 Usage: python bench/difficulty.py [--env ID] [--random-episodes 1000] [--expert-episodes 200]
        [--rollouts 64] [--candidate-seeds 0-4] [--sac-runs DIR [--sac-only]] [--out results/suite/difficulty.md]
+       [--json FILE]
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ from __future__ import annotations
 import argparse
 import csv
 import io
+import json
 import shlex
 import subprocess
 import sys
@@ -71,7 +77,7 @@ def omega_ss_ratio(env, states: np.ndarray, seed: int) -> float:
 
 
 def measure(env_id: str, args: argparse.Namespace) -> dict:
-    """Print one task's figures and return the ones the table shows."""
+    """Print one task's figures and return them all (what `--json` writes)."""
     env = gymnasium.make(env_id)
     layout = env.unwrapped.layout
     rng = np.random.default_rng(0)
@@ -95,15 +101,23 @@ def measure(env_id: str, args: argparse.Namespace) -> dict:
     on_bridge = np.abs(states[:, 0] - bridge.x) <= bridge.half_x
     counts, _ = np.histogram(lava_probability, bins=LAVA_PROBABILITY_EDGES)
     row["unsafe"] = float(np.mean(lava_probability >= 0.1))
-    print(f"demo states ({len(states)}, demos {args.demos}): on the bridge {on_bridge.mean():.1%}; "
-          f"4-step random lava probability >= 0.1: {row['unsafe']:.1%} "
-          f"(on the bridge: {np.mean(lava_probability[on_bridge] >= 0.1):.1%}, "
-          f"off it: {np.mean(lava_probability[~on_bridge] >= 0.1):.1%})")
-    print("  lava probability histogram:")
     edges = LAVA_PROBABILITY_EDGES
+    unsafe_x = states[lava_probability >= 0.1, 0]
+    row["demo_states"] = {
+        "count": len(states), "demos": args.demos, "on_bridge": float(on_bridge.mean()),
+        "unsafe_on_bridge": float(np.mean(lava_probability[on_bridge] >= 0.1)),
+        "unsafe_off_bridge": float(np.mean(lava_probability[~on_bridge] >= 0.1)),
+        "unsafe_x": [float(unsafe_x.min()), float(unsafe_x.max())] if len(unsafe_x) else None,
+        "bridge_x": [float(bridge.x - bridge.half_x), float(bridge.x + bridge.half_x)],
+        # [low, high, count]; every bin is [low, high) but the last, [low, 1]
+        "lava_probability_histogram": [[lo, min(hi, 1), int(count)] for lo, hi, count in zip(edges[:-1], edges[1:], counts)]}
+    demo = row["demo_states"]
+    print(f"demo states ({len(states)}, demos {args.demos}): on the bridge {demo['on_bridge']:.1%}; "
+          f"4-step random lava probability >= 0.1: {row['unsafe']:.1%} "
+          f"(on the bridge: {demo['unsafe_on_bridge']:.1%}, off it: {demo['unsafe_off_bridge']:.1%})")
+    print("  lava probability histogram:")
     for lo, hi, count in zip(edges[:-1], edges[1:], counts):
         print(f"    [{lo:.2f}, {min(hi, 1):.2f}{']' if hi > 1 else ')'}: {count}")
-    unsafe_x = states[lava_probability >= 0.1, 0]
     if len(unsafe_x):
         print(f"  states with lava probability >= 0.1 lie at x in [{unsafe_x.min():.2f}, {unsafe_x.max():.2f}] "
               f"(bridge: [{bridge.x - bridge.half_x:g}, {bridge.x + bridge.half_x:g}])")
@@ -213,12 +227,14 @@ def main(argv: list[str] | None = None) -> None:
                         help="append the SAC-from-p0 table of the runs under DIR/TASK/ (results/suite/sac_p0)")
     parser.add_argument("--sac-only", action="store_true", help="with --sac-runs: print only that table")
     parser.add_argument("--out", type=Path, help="also write the table, with the command and commit, to this file")
+    parser.add_argument("--json", type=Path, metavar="FILE",
+                        help="also write every measurement, per task, with the settings, command and commit, as JSON")
     args = parser.parse_args(argv)
     if args.sac_runs is not None and not args.sac_runs.is_dir():
         parser.error(f"--sac-runs {str(args.sac_runs)!r} is not a directory")
     if args.sac_only:
-        if args.sac_runs is None or args.out:
-            parser.error("--sac-only needs --sac-runs and prints the table; it writes no --out")
+        if args.sac_runs is None or args.out or args.json:
+            parser.error("--sac-only needs --sac-runs and prints the table; it writes no --out or --json")
         print(sac_from_p0(args.sac_runs), end="")
         return
     env_ids = args.env or list(lava_bridge_mj.TASKS)
@@ -236,20 +252,32 @@ def main(argv: list[str] | None = None) -> None:
     print()
     print(text)
     print(f"({time.perf_counter() - start:.0f} s)")
+    command = shlex.join(["python", "bench/difficulty.py", *(sys.argv[1:] if argv is None else argv)])
+    if args.json:
+        settings = {"random_episodes": args.random_episodes, "expert_episodes": args.expert_episodes,
+                    "rollouts": args.rollouts, "demos": args.demos, "candidate_seeds": args.candidate_seeds}
+        record = {"command": command, "commit": version, "settings": settings,
+                  "tasks": {row["task"]: {key: value for key, value in row.items() if key != "task"} for row in rows}}
+        write_atomically(args.json, json.dumps(record, indent=1) + "\n")
+        print(f"wrote {args.json}")
     if args.out:
-        command = shlex.join(["python", "bench/difficulty.py", *(sys.argv[1:] if argv is None else argv)])
         header = (f"# Difficulty of the Lava Bridge tasks\n\n`{command}` at commit {version}, "
                   f"{time.perf_counter() - start:.0f} s.\n\n"
                   f"Random policy: {args.random_episodes} episodes from p0; expert: {args.expert_episodes} episodes "
                   f"from p0 and from ood; lava probability: {args.rollouts} random 4-step rollouts per state of "
                   f"each task's {args.demos}-transition demo set; Omega-SS: its default 32 rollouts per candidate "
                   f"state, the {CANDIDATES} candidates of each seed's run.\n\n")
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = args.out.with_name(args.out.name + ".tmp")
         sac = "" if args.sac_runs is None else "\n" + sac_from_p0(args.sac_runs)
-        tmp.write_text(header + text + "\n" + sac)
-        tmp.replace(args.out)
+        write_atomically(args.out, header + text + "\n" + sac)
         print(f"wrote {args.out}")
+
+
+def write_atomically(path: Path, text: str) -> None:
+    """Write `text` to `path` through a temporary file beside it, so a crash leaves the old file whole."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text)
+    tmp.replace(path)
 
 
 if __name__ == "__main__":
