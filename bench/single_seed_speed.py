@@ -1,13 +1,15 @@
 """The single-seed training path against an earlier revision of this package, side by side in one run.
 
-The target: batching seeds must not make one seed slower. This checks out REV (default 5eff605,
-the last commit before the batched trainer) into a temporary git worktree, and times the same
+The target: batching seeds must not make one seed slower. This extracts REV's code (default 5eff605,
+the last commit before the batched trainer) into a temporary folder with `git archive`, and times the same
 single-seed `train()` call (SAC from p0, 64x64, one update per step after 1,000 warm-up steps, one
 final evaluation episode per start distribution) in fresh subprocesses, alternating the two trees so
 that background load hits both alike. Figure: env steps per second, whole run included; the median of
-the repeats, and the ratio this tree / REV (above 1: this tree is faster).
+the repeats, and the ratio this tree / REV (above 1: this tree is faster). `--out FILE` also writes
+the report, headed by the command and the commit it ran at, to FILE (docs/speed.md's figures come
+from results/bench/single_seed_speed.txt).
 
-Usage: python bench/single_seed_speed.py [--rev 5eff605] [--steps 3000] [--repeats 3] [--quick]
+Usage: python bench/single_seed_speed.py [--rev 5eff605] [--steps 3000] [--repeats 3] [--quick] [--out FILE]
 Needs git and this repository's history.
 """
 
@@ -15,11 +17,14 @@ from __future__ import annotations
 
 import argparse
 import os
+import shlex
 import statistics
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
+
+from difficulty import code_version, write_atomically  # bench/ is on sys.path when this script runs
 
 ROOT = Path(__file__).resolve().parent.parent
 # the repository's folders and the import names setup.cfg maps them to
@@ -73,36 +78,39 @@ def rate(tree: Path, steps: int) -> float:
     return float(result.stdout.strip().splitlines()[-1])
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rev", default="5eff605")
     parser.add_argument("--steps", type=int, default=3000)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--quick", action="store_true", help="1,200 steps, one repeat (CI: it runs, figures not asserted)")
-    args = parser.parse_args()
+    parser.add_argument("--out", type=Path, metavar="FILE", help="also write the report to FILE")
+    args = parser.parse_args(argv)
     steps, repeats = (1200, 1) if args.quick else (args.steps, args.repeats)
     known = subprocess.run(["git", "-C", str(ROOT), "cat-file", "-e", f"{args.rev}^{{commit}}"], capture_output=True)
     if known.returncode != 0:
         sys.exit(f"revision {args.rev} is not in this clone's history (a shallow clone?): nothing to compare against")
+    command = shlex.join(["python", "bench/single_seed_speed.py", *(sys.argv[1:] if argv is None else argv)])
+    version = code_version()  # before the run: what the figures came from
+    load_before = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        worktree = tmp / "rev"
-        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q", str(worktree), args.rev], check=True)
-        try:
-            trees = {"this tree": importable_tree(ROOT, tmp / "head"),
-                     args.rev: importable_tree(worktree, tmp / "old")}
-            rates: dict[str, list[float]] = {name: [] for name in trees}
-            for _ in range(repeats):
-                for name, tree in trees.items():
-                    rates[name].append(rate(tree, steps))
-        finally:
-            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(worktree)], check=True)
-    print(f"single-seed SAC from p0, 64x64, {steps} steps (1,000 warm-up), 1 torch thread, "
-          f"median of {repeats}; load average {os.getloadavg()[0]:.2f}")
+        trees = {"this tree": importable_tree(ROOT, tmp / "head"), args.rev: commit_tree(args.rev, tmp)}
+        rates: dict[str, list[float]] = {name: [] for name in trees}
+        for _ in range(repeats):
+            for name, tree in trees.items():
+                rates[name].append(rate(tree, steps))
+    lines = [f"$ {command}", f"this tree: {version}; ref: {args.rev}",
+             f"single-seed SAC from p0, 64x64, {steps} steps (1,000 warm-up), 1 torch thread, "
+             f"median of {repeats}; load average before {load_before:.2f}, after {os.getloadavg()[0]:.2f}"]
     for name, values in rates.items():
-        print(f"  {name:>10}: {statistics.median(values):7.1f} steps/s   runs: {', '.join(f'{v:.1f}' for v in values)}")
+        lines.append(f"  {name:>10}: {statistics.median(values):7.1f} steps/s   runs: {', '.join(f'{v:.1f}' for v in values)}")
     ratio = statistics.median(rates["this tree"]) / statistics.median(rates[args.rev])
-    print(f"  ratio this tree / {args.rev}: {ratio:.2f}")
+    lines.append(f"  ratio this tree / {args.rev}: {ratio:.2f}")
+    print("\n".join(lines))
+    if args.out:
+        write_atomically(args.out, "\n".join(lines) + "\n")
+        print(f"wrote {args.out}")
 
 
 if __name__ == "__main__":

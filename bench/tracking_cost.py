@@ -10,6 +10,8 @@ two direct figures follow: the time spent inside the loop's logging calls (`Run.
 timed around each call) as a share of the logged runs' wall time, and the sink's whole work
 replayed alone (the same number of writes of the same scalars into fresh SummaryWriters, closed,
 so the writer thread's work is counted) in CPU time, as a share of the runs' CPU time without sinks.
+`--out FILE` also writes the report to FILE (docs/training.md's figures come from
+results/bench/tracking_cost.txt).
 
     python bench/tracking_cost.py                      # 5 seeds, 5,000 steps, 3 repeats each way
     python bench/tracking_cost.py --seeds 1            # one seed: the fewest steps per second
@@ -19,6 +21,8 @@ so the writer thread's work is counted) in CPU time, as a share of the runs' CPU
 from __future__ import annotations
 
 import argparse
+import os
+import shlex
 import statistics
 import sys
 import tempfile
@@ -27,7 +31,7 @@ from pathlib import Path
 
 import torch
 
-from difficulty import code_version  # bench/ is on sys.path when this script runs
+from difficulty import code_version, write_atomically  # bench/ is on sys.path when this script runs
 from lava_bridge_mj.eval.training import runner
 from lava_bridge_mj.eval.training.config import RunConfig
 from lava_bridge_mj.eval.training.tracking import TRAIN_LOG_EVERY, training_scalars
@@ -90,6 +94,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--log-every", type=int, default=TRAIN_LOG_EVERY,
                         help=f"steps between two writes of the training scalars (default: {TRAIN_LOG_EVERY})")
     parser.add_argument("--quick", action="store_true", help="1 seed, 600 steps, 1 repeat, a write every 100 steps")
+    parser.add_argument("--out", type=Path, metavar="FILE", help="also write the report to FILE")
     args = parser.parse_args(argv)
     if args.quick:
         args.seeds, args.steps, args.repeats, args.log_every = 1, 600, 1, 100
@@ -98,9 +103,16 @@ def main(argv: list[str] | None = None) -> int:
     torch.set_num_threads(1)  # the CLI's default
     seeds = list(range(args.seeds))
     config = RunConfig(method="auxss", steps=args.steps, eval_every=args.steps, eval_episodes=10)
-    print(f"$ python bench/tracking_cost.py {' '.join(sys.argv[1:] if argv is None else argv)}")
-    print(f"at commit {code_version()}, torch {torch.__version__}, 1 thread; auxss, {args.seeds} seed(s) batched, "
-          f"{args.steps} steps, one evaluation of 10 + 10 episodes; TensorBoard every {args.log_every} steps")
+    lines = []
+
+    def report(line: str) -> None:
+        lines.append(line)
+        print(line, flush=True)
+
+    report("$ " + shlex.join(["python", "bench/tracking_cost.py", *(sys.argv[1:] if argv is None else argv)]))
+    report(f"at commit {code_version()}, torch {torch.__version__}, 1 thread; auxss, {args.seeds} seed(s) batched, "
+           f"{args.steps} steps, one evaluation of 10 + 10 episodes; TensorBoard every {args.log_every} steps; "
+           f"load average before {os.getloadavg()[0]:.2f}")
     times: dict[str, list[tuple[float, float]]] = {"without": [], "tensorboard": []}
     with tempfile.TemporaryDirectory(prefix="tracking-cost-") as scratch, LoggingTimer() as timer:
         root = Path(scratch)
@@ -113,20 +125,24 @@ def main(argv: list[str] | None = None) -> int:
                 log = ("tensorboard",) if way == "tensorboard" else ()
                 times[way].append(train_once(config, seeds, root, log, args.log_every))
                 wall, cpu = times[way][-1]
-                print(f"  repeat {repeat + 1}: {way:<11} {wall:7.2f} s wall, {cpu:7.2f} s CPU", flush=True)
+                report(f"  repeat {repeat + 1}: {way:<11} {wall:7.2f} s wall, {cpu:7.2f} s CPU")
     for index, kind in enumerate(("wall", "CPU")):
         without, logged = (statistics.median(t[index] for t in times[way]) for way in ("without", "tensorboard"))
-        print(f"median {kind:<4} time without sinks {without:8.2f} s, with TensorBoard {logged:8.2f} s: "
-              f"ratio {logged / without:.4f}")
+        report(f"median {kind:<4} time without sinks {without:8.2f} s, with TensorBoard {logged:8.2f} s: "
+               f"ratio {logged / without:.4f}")
     writes = max(timer.calls, 1)
     share = timer.seconds / sum(wall for wall, _ in times["tensorboard"])
-    print(f"time in the logging calls           {timer.seconds * 1000 / writes:8.2f} ms per write of "
-          f"{args.seeds} seed(s), {timer.calls} writes: {100 * share:.3f}% of the logged runs' wall time")
+    report(f"time in the logging calls           {timer.seconds * 1000 / writes:8.2f} ms per write of "
+           f"{args.seeds} seed(s), {timer.calls} writes: {100 * share:.3f}% of the logged runs' wall time")
     with tempfile.TemporaryDirectory(prefix="tracking-cost-") as scratch:
         replayed = replay_cpu_seconds(writes, args.seeds, Path(scratch))
     cpu_without = statistics.median(cpu for _, cpu in times["without"])
-    print(f"the sink's whole work, replayed     {replayed * 1000 / writes:8.2f} ms CPU per write of {args.seeds} "
-          f"seed(s): {100 * replayed / (cpu_without * args.repeats):.3f}% of the CPU time without sinks")
+    report(f"the sink's whole work, replayed     {replayed * 1000 / writes:8.2f} ms CPU per write of {args.seeds} "
+           f"seed(s): {100 * replayed / (cpu_without * args.repeats):.3f}% of the CPU time without sinks")
+    report(f"load average after: {os.getloadavg()[0]:.2f}")
+    if args.out:
+        write_atomically(args.out, "\n".join(lines) + "\n")
+        print(f"wrote {args.out}")
     return 0
 
 
