@@ -304,3 +304,116 @@ def test_the_main_budget_table_counts_seeds_reaching_08_by_each_budget(tmp_path)
 def test_the_main_budget_source_names_a_folder_without_runs(tmp_path):
     with pytest.raises(ValueError, match="auxss-d500 holds no runs"):
         doc_tables.main_budget_source(tmp_path)
+
+
+def difficulty_record(histogram, unsafe_x=(-1.714, 1.426)):
+    """What `bench/difficulty.py --json` writes for LavaBridge-v0, with hand-picked figures."""
+    return {"command": "python bench/difficulty.py --env LavaBridge-v0 --json d.json", "commit": "abc1234",
+            "settings": {"random_episodes": 1000, "expert_episodes": 200, "rollouts": 64, "demos": 500,
+                         "candidate_seeds": [0, 1]},
+            "tasks": {"LavaBridge-v0": {
+                "random": {"success": 0.0, "lava": 0.692, "truncated": 0.308, "mean_length": 313.6},
+                "expert_p0": {"success": 1.0, "lava": 0.0, "truncated": 0.0, "mean_length": 170.2},
+                "expert_ood": {"success": 0.995, "lava": 0.005, "truncated": 0.0, "mean_length": 162.5},
+                "unsafe": 0.448,
+                "demo_states": {"count": 500, "demos": 500, "on_bridge": 0.426, "unsafe_on_bridge": 0.97653,
+                                "unsafe_off_bridge": 0.05575, "unsafe_x": list(unsafe_x) if unsafe_x else None,
+                                "bridge_x": [-1.5, 1.5], "lava_probability_histogram": histogram},
+                "omega_ratios": [2.0, 1.8]}}}
+
+
+def test_lava_bridge_difficulty_gives_the_command_the_table_and_the_histogram(tmp_path):
+    histogram = [[0, 0.01, 259], [0.01, 0.1, 17], [0.1, 0.2, 12], [0.2, 0.3, 122], [0.3, 0.5, 90], [0.5, 1, 0]]
+    assert doc_tables.lava_bridge_difficulty(difficulty_record(histogram)) == [
+        "`python bench/difficulty.py --env LavaBridge-v0 --json d.json` (1,000 random episodes, 200 expert episodes "
+        "per start distribution, 64 random rollouts per demo state):", "",
+        "| measure | value |", "|---|---|",
+        "| uniformly random policy from p0: success | **0.00%** of 1,000 episodes |",
+        "| uniformly random policy from p0: ends in lava / times out | 69.2% / 30.8% (mean length 314 steps) |",
+        "| scripted expert from p0 / from ood: success | 100% / 100% of 200 episodes each (mean length 170 / 162 "
+        "steps) |",
+        "| demo states (500 set) on the bridge | 42.6% |",
+        "| demo states whose 4-step random-action lava probability is >= 0.1 | 44.8% (97.7% of bridge states, 5.6% "
+        "of the others; all at x in [-1.71, 1.43]) |", "",
+        "Histogram of the 4-step random-action lava probability (1 - Omega) over the 500 demo states:",
+        "259 in [0, 0.01), 17 in [0.01, 0.1), 12 in [0.1, 0.2), 122 in [0.2, 0.3), 90 in [0.3, 0.5), none above."]
+    # a filled top bin is closed at 1 and nothing is "above" it; no unsafe state: no x range
+    lines = doc_tables.lava_bridge_difficulty(difficulty_record([[0, 0.5, 0], [0.5, 1, 3]], unsafe_x=None))
+    assert lines[-1] == "0 in [0, 0.5), 3 in [0.5, 1]."
+    assert lines[8].endswith("(97.7% of bridge states, 5.6% of the others) |")
+    (tmp_path / "results/suite").mkdir(parents=True)
+    (tmp_path / doc_tables.LAVA_BRIDGE_DIFFICULTY).write_text(json.dumps({"tasks": {"LavaBridgeLong-v0": {}}}))
+    with pytest.raises(doc_tables.SourceError, match="difficulty_LavaBridge-v0.json holds no figures of LavaBridge-v0"):
+        doc_tables.lava_bridge_difficulty_source(tmp_path)
+
+
+SINGLE_SEED = """$ python bench/single_seed_speed.py --steps 5000 --repeats 3
+this tree: abc1234; ref: 5eff605
+single-seed SAC from p0, 64x64, 5000 steps (1,000 warm-up), 1 torch thread, median of 3; load average before 5.28, after 5.42
+   this tree:   110.7 steps/s   runs: 110.7, 102.7, 123.3
+     5eff605:   134.0 steps/s   runs: 124.2, 155.7, 134.0
+  ratio this tree / 5eff605: 0.83
+"""
+
+
+def test_the_single_seed_sentence_gives_each_report_of_the_file():
+    assert doc_tables.single_seed_speed(SINGLE_SEED) == [
+        "`python bench/single_seed_speed.py --steps 5000 --repeats 3` gave **0.83** (this tree 110.7 steps/s, "
+        "5eff605 134.0; medians of 3 runs of 5,000 steps each, single runs 102.7-123.3 and 124.2-155.7 steps/s): "
+        "this tree was slower."]
+    again = (SINGLE_SEED.replace("--repeats 3", "--repeats 1").replace("median of 3", "median of 1")
+             .replace("110.7, 102.7, 123.3", "140.0").replace("110.7 steps/s", "140.0 steps/s")
+             .replace("124.2, 155.7, 134.0", "133.3").replace("134.0 steps/s", "133.3 steps/s")
+             .replace("0.83", "1.05").replace("5000 steps", "3000 steps"))
+    assert doc_tables.single_seed_speed(SINGLE_SEED + again)[0].endswith(
+        "this tree was slower; `python bench/single_seed_speed.py --steps 5000 --repeats 1` gave **1.05** (this tree "
+        "140.0 steps/s, 5eff605 133.3; medians of 1 runs of 3,000 steps each, single runs 140.0-140.0 and "
+        "133.3-133.3 steps/s): this tree was not slower.")
+    assert doc_tables.single_seed_speed(SINGLE_SEED + SINGLE_SEED.replace("0.83", "0.99"))[0].endswith(
+        "this tree was slower; run again, it gave **0.99** (this tree 110.7 steps/s, 5eff605 134.0; medians of 3 runs "
+        "of 5,000 steps each, single runs 102.7-123.3 and 124.2-155.7 steps/s): this tree was slower.")
+    with pytest.raises(doc_tables.SourceError, match="single_seed_speed.txt holds no report"):
+        doc_tables.single_seed_speed("ratio this tree / 5eff605: 1.09\n")
+
+
+TRACKING_COST = """$ python bench/tracking_cost.py --out results/bench/tracking_cost.txt
+at commit abc1234, torch 2.13.0+cpu, 1 thread; auxss, 5 seed(s) batched, 5000 steps, one evaluation of 10 + 10 episodes; TensorBoard every 1000 steps; load average before 5.38
+  repeat 1: without       80.00 s wall,   46.30 s CPU
+  repeat 1: tensorboard  101.00 s wall,   53.10 s CPU
+  repeat 2: tensorboard   90.00 s wall,   64.20 s CPU
+  repeat 2: without       84.00 s wall,   45.70 s CPU
+median wall time without sinks    82.00 s, with TensorBoard    95.50 s: ratio 1.1646
+median CPU  time without sinks    46.00 s, with TensorBoard    58.65 s: ratio 1.2750
+time in the logging calls              10.20 ms per write of 5 seed(s), 10 writes: 0.053% of the logged runs' wall time
+the sink's whole work, replayed         3.10 ms CPU per write of 5 seed(s): 0.034% of the CPU time without sinks
+load average after: 5.10
+"""
+
+
+def test_the_tracking_cost_sentences_give_the_direct_figures_then_the_side_by_side_ones():
+    assert doc_tables.tracking_cost(TRACKING_COST) == [
+        "`python bench/tracking_cost.py --out results/bench/tracking_cost.txt` (AuxSS, 5 seeds batched, 5,000 steps, "
+        "2 runs each way with and without `--log tensorboard` writing every 1,000 steps, alternating) measured 10.20 ms "
+        "in the loop's logging calls per write of the 5 seeds' scalars, **0.053%** of the logged runs' wall time, and "
+        "the sink's whole work replayed alone (its writer thread's included) 3.10 ms of CPU per write, 0.034% of the "
+        "runs' CPU time. The same run's side-by-side medians: wall 82 s without the sink and 96 s with it, CPU 46.0 s "
+        "and 58.6 s (ratios 1.16 and 1.27); single runs ranged from 45.7 to 46.3 s of CPU without the sink and from "
+        "53.1 to 64.2 s with it. `--log-every 100` writes 10 times as often, about 0.53% of the wall time here."]
+    every_100 = TRACKING_COST.replace("TensorBoard every 1000 steps", "TensorBoard every 100 steps")
+    assert doc_tables.tracking_cost(every_100)[0].endswith("s with it.")
+    with pytest.raises(doc_tables.SourceError, match="tracking_cost.txt"):
+        doc_tables.tracking_cost(TRACKING_COST.replace("time in the logging calls", "logging"))
+
+
+def test_the_committed_lava_bridge_difficulty_adds_up():
+    record = doc_tables.lava_bridge_difficulty_source(ROOT)
+    task = record["tasks"]["LavaBridge-v0"]
+    demo, random_policy = task["demo_states"], task["random"]
+    histogram = demo["lava_probability_histogram"]
+    assert sum(count for _, _, count in histogram) == demo["count"] == demo["demos"]
+    assert [low for low, _, _ in histogram[1:]] == [high for _, high, _ in histogram[:-1]] and histogram[-1][1] == 1
+    unsafe = sum(count for low, _, count in histogram if low >= 0.1)
+    assert task["unsafe"] == pytest.approx(unsafe / demo["count"])
+    every_end = random_policy["success"] + random_policy["lava"] + random_policy["truncated"]
+    assert every_end == pytest.approx(1.0)  # an episode ends at the goal, in lava, or at the time limit
+    assert record["command"].startswith("python bench/difficulty.py --env LavaBridge-v0")

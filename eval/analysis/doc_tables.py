@@ -10,9 +10,12 @@ under the repository root, and a render function, which turns what the source re
   answers task by task, the same answers in words, each task's comparisons with their effect and, where no
   test decides, the equivalence intervals or the seeds that would decide, and the seeds each group holds;
 - docs/environment.md: the difficulty table, from results/suite/difficulty.md (what `bench/difficulty.py
-  --out` writes) and the SAC-from-p0 runs in results/suite/sac_p0;
-- docs/speed.md and docs/sweeps.md: the speed tables, from the bench outputs in results/bench/*.txt, and
-  the network-size table, from the AuxSS runs in results/netsize and results/calibration/auxss_lava0;
+  --out` writes) and the SAC-from-p0 runs in results/suite/sac_p0; LavaBridge-v0's measured difficulty,
+  from results/suite/difficulty_LavaBridge-v0.json (what `bench/difficulty.py --json` writes);
+- docs/speed.md and docs/sweeps.md: the speed tables and the single-seed path's figures, from the bench
+  outputs in results/bench/*.txt, and the network-size table, from the AuxSS runs in results/netsize and
+  results/calibration/auxss_lava0;
+- docs/training.md: what the TensorBoard sink costs, from results/bench/tracking_cost.txt;
 - docs/index.md: why the main job trains 80,000 steps, from the runs in results/main_budget (`make
   main-budget`): per budget, the seeds of AuxSS and of SAC from p0 that reached p0 success 0.8 by then;
 - results/INDEX.md: per folder of runs under results/, the methods, seeds, runs, commits, platform and
@@ -40,6 +43,7 @@ from lava_bridge_mj.eval.arguments import format_seeds
 ROOT = Path(__file__).resolve().parents[2]
 ANSWERS = Path("docs/report_study/answers.json")
 DIFFICULTY = Path("results/suite/difficulty.md")
+LAVA_BRIDGE_DIFFICULTY = Path("results/suite/difficulty_LavaBridge-v0.json")
 SAC_FROM_P0 = Path("results/suite/sac_p0")
 BENCH = Path("results/bench")
 RESULTS = Path("results")
@@ -47,7 +51,7 @@ INDEX = Path("results/INDEX.md")
 CODE_BEFORE_PROVENANCE = Path("results/code_before_provenance.json")
 """Folder -> the commits noted for its runs made before provenance.json was recorded."""
 DOCUMENTS = (Path("README.md"), Path("docs/results.md"), Path("docs/environment.md"), Path("docs/speed.md"),
-             Path("docs/sweeps.md"), Path("docs/index.md"), INDEX)
+             Path("docs/sweeps.md"), Path("docs/index.md"), Path("docs/training.md"), INDEX)
 START_DISTRIBUTIONS = ("auxss", "uniform_ss", "omega_ss", "goaldist_ss", "reverse_ss")
 _BLOCK = re.compile(r"(<!-- generated: (?P<name>[a-z-]+) -->\n).*?(<!-- end: (?P=name) -->)", re.S)
 
@@ -163,6 +167,44 @@ def difficulty_table(data: tuple[list[str], list[list[str]], dict]) -> list[str]
             cell = f"{success:.2f} (seeds {format_seeds(seeds)})"
         lines.append("| " + " | ".join(row + [cell]) + " |")
     return lines
+
+
+def lava_bridge_difficulty_source(root: Path) -> dict:
+    record = json.loads((root / LAVA_BRIDGE_DIFFICULTY).read_text())
+    if "LavaBridge-v0" not in record.get("tasks", {}):
+        raise SourceError(f"{LAVA_BRIDGE_DIFFICULTY} holds no figures of LavaBridge-v0")
+    return record
+
+
+def lava_bridge_difficulty(record: dict) -> list[str]:
+    """`bench/difficulty.py --json` for LavaBridge-v0: its command and settings, how random and expert
+    episodes end, where the demo states' 4-step lava probability is high, and that probability's histogram."""
+    settings, task = record["settings"], record["tasks"]["LavaBridge-v0"]
+    r, p0, ood, demo = task["random"], task["expert_p0"], task["expert_ood"], task["demo_states"]
+    where = "" if demo["unsafe_x"] is None else "; all at x in [{:.2f}, {:.2f}]".format(*demo["unsafe_x"])
+    bins = demo["lava_probability_histogram"]
+    while len(bins) > 1 and bins[-1][2] == 0:  # empty bins at the top: "none above"
+        bins = bins[:-1]
+    last = len(demo["lava_probability_histogram"]) - 1
+    counts = [f"{count} in [{low:g}, {high:g}{']' if i == last else ')'}" for i, (low, high, count) in enumerate(bins)]
+    above = ", none above" if len(bins) <= last else ""
+    return [f"`{record['command']}` ({settings['random_episodes']:,} random episodes, {settings['expert_episodes']:,} "
+            f"expert episodes per start distribution, {settings['rollouts']} random rollouts per demo state):", "",
+            "| measure | value |", "|---|---|",
+            f"| uniformly random policy from p0: success | **{r['success']:.2%}** of {settings['random_episodes']:,} "
+            "episodes |",
+            f"| uniformly random policy from p0: ends in lava / times out | {r['lava']:.1%} / {r['truncated']:.1%} "
+            f"(mean length {r['mean_length']:.0f} steps) |",
+            f"| scripted expert from p0 / from ood: success | {p0['success']:.0%} / {ood['success']:.0%} of "
+            f"{settings['expert_episodes']:,} episodes each (mean length {p0['mean_length']:.0f} / "
+            f"{ood['mean_length']:.0f} steps) |",
+            f"| demo states ({demo['demos']} set) on the bridge | {demo['on_bridge']:.1%} |",
+            f"| demo states whose 4-step random-action lava probability is >= 0.1 | {task['unsafe']:.1%} "
+            f"({demo['unsafe_on_bridge']:.1%} of bridge states, {demo['unsafe_off_bridge']:.1%} of the others"
+            f"{where}) |", "",
+            f"Histogram of the 4-step random-action lava probability (1 - Omega) over the {demo['count']} demo "
+            "states:",
+            ", ".join(counts) + above + "."]
 
 
 # --- the speed tables (results/bench/*.txt) -----------------------------------------------------------------
@@ -381,6 +423,71 @@ def sweep_scaling_table(text: str) -> list[str]:
     return lines
 
 
+def single_seed_runs(text: str) -> list[dict]:
+    """bench/single_seed_speed.py's reports in the file (one per `$ command` line): the command, the reference,
+    the repeats, each tree's median and single runs in steps/s, and the ratio this tree / reference."""
+    runs = []
+    for report in re.split(r"^(?=\$ )", text, flags=re.MULTILINE)[1:]:
+        [(command, ref)] = _matches(r"^\$ (.*)\n.*; ref: (\w+)$", report, "single_seed_speed.txt")
+        [(steps, repeats)] = _matches(r"^single-seed SAC from p0, 64x64, (\d+) steps .*median of (\d+)", report,
+                                      "single_seed_speed.txt")
+        trees = {name: (float(median), [float(v) for v in values.split(", ")]) for name, median, values in
+                 _matches(r"^\s*(this tree|\w+):\s+([\d.]+) steps/s\s+runs: (.*)$", report, "single_seed_speed.txt")}
+        [ratio] = _matches(r"^\s*ratio this tree / \w+: ([\d.]+)$", report, "single_seed_speed.txt")
+        if set(trees) != {"this tree", ref}:
+            raise SourceError(f"single_seed_speed.txt: a report times {sorted(trees)}, not this tree and {ref}")
+        runs.append({"command": command, "ref": ref, "steps": int(steps), "repeats": int(repeats), "trees": trees,
+                     "ratio": ratio})
+    if not runs:
+        raise SourceError("single_seed_speed.txt holds no report starting '$ python bench/single_seed_speed.py'")
+    return runs
+
+
+def single_seed_speed(text: str) -> list[str]:
+    """bench/single_seed_speed.py: per report, the ratio this tree / the reference, the medians and the spread."""
+    said, command = [], None
+    for run in single_seed_runs(text):
+        (here, here_runs), (ref, ref_runs) = run["trees"]["this tree"], run["trees"][run["ref"]]
+        gave = "run again, it gave" if run["command"] == command else f"`{run['command']}` gave"
+        command = run["command"]
+        said.append(f"{gave} **{run['ratio']}** (this tree {here:.1f} steps/s, {run['ref']} "
+                    f"{ref:.1f}; medians of {run['repeats']} runs of {run['steps']:,} steps each, single runs "
+                    f"{min(here_runs):.1f}-{max(here_runs):.1f} and {min(ref_runs):.1f}-{max(ref_runs):.1f} steps/s): "
+                    + ("this tree was not slower" if float(run["ratio"]) >= 1 else "this tree was slower"))
+    return ["; ".join(said) + "."]
+
+
+def tracking_cost(text: str) -> list[str]:
+    """bench/tracking_cost.py: the time in the logging calls and the sink's work replayed alone, the side-by-side
+    medians and the spread of single runs, and the share at a write every 100 steps."""
+    where = "tracking_cost.txt"
+    [command] = _matches(r"^\$ (.*)$", text, where)
+    [(seeds, steps, every)] = _matches(r"^at commit .*?; auxss, (\d+) seed\(s\) batched, (\d+) steps, .*?; "
+                                       r"TensorBoard every (\d+) steps", text, where)
+    repeats = _matches(r"^\s*repeat \d+: (\w+)\s+[\d.]+ s wall,\s+([\d.]+) s CPU$", text, where)
+    runs = {way: [float(cpu) for w, cpu in repeats if w == way] for way in ("without", "tensorboard")}
+    medians = {kind: (float(a), float(b), float(ratio)) for kind, a, b, ratio in _matches(
+        r"^median (wall|CPU)\s+time without sinks\s+([\d.]+) s, with TensorBoard\s+([\d.]+) s: ratio ([\d.]+)$",
+        text, where)}
+    [(call_ms, wall_share)] = _matches(r"^time in the logging calls\s+([\d.]+) ms per write of .*: ([\d.]+)% of", text,
+                                       where)
+    [(replay_ms, cpu_share)] = _matches(r"^the sink's whole work, replayed\s+([\d.]+) ms CPU per write of .*: "
+                                        r"([\d.]+)% of", text, where)
+    (wall_0, wall_1, wall_ratio), (cpu_0, cpu_1, cpu_ratio) = medians["wall"], medians["CPU"]
+    often = int(every) / 100
+    return [f"`{command}` (AuxSS, {seeds} seeds batched, {int(steps):,} steps, {len(runs['without'])} runs each way "
+            f"with and without `--log tensorboard` writing every {int(every):,} steps, alternating) measured "
+            f"{call_ms} ms in the loop's logging calls per write of the {seeds} seeds' scalars, **{wall_share}%** of "
+            f"the logged runs' wall time, and the sink's whole work replayed alone (its writer thread's included) "
+            f"{replay_ms} ms of CPU per write, {cpu_share}% of the runs' CPU time. The same run's side-by-side "
+            f"medians: wall {wall_0:.0f} s without the sink and {wall_1:.0f} s with it, CPU {cpu_0:.1f} s and "
+            f"{cpu_1:.1f} s (ratios {wall_ratio:.2f} and {cpu_ratio:.2f}); single runs ranged from "
+            f"{min(runs['without']):.1f} to {max(runs['without']):.1f} s of CPU without the sink and from "
+            f"{min(runs['tensorboard']):.1f} to {max(runs['tensorboard']):.1f} s with it."
+            + (f" `--log-every 100` writes {often:g} times as often, about {often * float(wall_share):.2f}% of the "
+               "wall time here." if often > 1 else "")]
+
+
 NETSIZE_RUNS = (Path("results/calibration/auxss_lava0"), Path("results/netsize/auxss-h128"),
                 Path("results/netsize/auxss-h256"))
 """AuxSS at 64 (the calibration's runs), 128 and 256 hidden units."""
@@ -554,6 +661,7 @@ PARTS: dict[str, Part] = {
     "study-answers": Part(answers_source, answer_table), "study-in-words": Part(answers_source, in_words),
     "study-comparisons": Part(answers_source, comparison_tables), "study-seeds": Part(answers_source, seeds_table),
     "difficulty": Part(difficulty_source, difficulty_table),
+    "difficulty-lava-bridge": Part(lava_bridge_difficulty_source, lava_bridge_difficulty),
     "speed-protocol": Part(bench_text("protocol_throughput.txt"), protocol_table),
     "speed-env-loops": Part(bench_text("env_throughput.txt"), env_loops_table),
     "speed-free-motion": Part(bench_text("env_throughput.txt"), free_motion_table),
@@ -564,6 +672,8 @@ PARTS: dict[str, Part] = {
     "speed-sac-throughput": Part(sac_throughput_source, sac_throughput_table),
     "speed-vector-env": Part(bench_text("env_throughput.txt"), vector_table),
     "speed-threads": Part(bench_text("threads_under_load.txt"), threads_table),
+    "speed-single-seed": Part(bench_text("single_seed_speed.txt"), single_seed_speed),
+    "tracking-cost": Part(bench_text("tracking_cost.txt"), tracking_cost),
     "speed-netsize": Part(netsize_source, netsize_table),
     "sweep-scaling": Part(bench_text("sweep_scaling.txt"), sweep_scaling_table),
     "main-budget": Part(main_budget_source, main_budget_table),
