@@ -417,3 +417,37 @@ def test_the_committed_lava_bridge_difficulty_adds_up():
     every_end = random_policy["success"] + random_policy["lava"] + random_policy["truncated"]
     assert every_end == pytest.approx(1.0)  # an episode ends at the goal, in lava, or at the time limit
     assert record["command"].startswith("python bench/difficulty.py --env LavaBridge-v0")
+
+
+def test_the_external_tasks_table_puts_each_policys_two_starts_on_one_row():
+    text = ("| task | policy | start | episodes | success rate | mean episode length |\n|---|---|---|---|---|---|\n"
+            "| Maze-v0 | expert | p0 | 100 | 1.00 | 451.4 |\n| Maze-v0 | expert | ood | 100 | 0.90 | 283.8 |\n"
+            "| Maze-v0 | random | p0 | 100 | 0.00 | 800.0 |\n\n"
+            "Maze-v0: 25,488 env steps/s of random actions through make_task_env's wrappers (20000 steps)\n"
+            "Cube-v0: 858 env steps/s of random actions through make_task_env's wrappers (20000 steps)\n")
+    assert doc_tables.external_tasks(text)[2:] == [
+        "| Maze-v0 | expert | 1.00 | 451.4 | 0.90 | 283.8 |", "| Maze-v0 | random | 0.00 | 800.0 | - | - |", "",
+        "Env steps/s of random actions through `make_task_env`'s wrappers: 25,488 on Maze-v0, 858 on Cube-v0."]
+
+
+def test_the_external_throughput_table_prices_ten_seeds_at_300k_steps_per_task(tmp_path):
+    bench = tmp_path / doc_tables.BENCH
+    bench.mkdir(parents=True)
+    table = "| hidden | trainer | seed-steps/s | x SB3 | x K=1 |\n|---|---|---|---|---|\n"
+    (bench / "external_throughput_Cube-v0.txt").write_text(
+        "# SAC throughput on Cube-v0: this package's trainer against SB3\n\n"
+        "`python bench/external_throughput.py --env Cube-v0 --seeds 1 10`\n\n"
+        "python 3.11 | 2 CPUs, load average 4.75 at the start\n\n" + table +
+        "| 64 | SB3 SAC | 25 | 1.00 | |\n| 64 | ours K=10 | 125 | 5.00 | 4.84 |\n")
+    (bench / "external_throughput.txt").write_text(
+        "# SAC throughput on Maze-v0: this package's trainer against SB3\n\n`python bench/external_throughput.py`\n\n"
+        + table + "| 64 | ours K=25 | 400 | 8.00 | 7.78 |\n")
+    assert doc_tables.external_throughput(doc_tables.external_throughput_source(tmp_path))[2:] == [
+        "| Maze-v0 | ours K=25 | 400 | 8.00 | 7.78 | 2.1 |",  # 3,000,000 / 400 / 3600 = 2.08 h
+        "| Cube-v0 | SB3 SAC | 25 | 1.00 |  | 33.3 |", "| Cube-v0 | ours K=10 | 125 | 5.00 | 4.84 | 6.7 |", "",
+        "Made by `python bench/external_throughput.py` (measured beside other processes; load not recorded); "
+        "`python bench/external_throughput.py --env Cube-v0 --seeds 1 10` (one-minute load average 4.75 as it began)."]
+    for stale in bench.iterdir():
+        stale.unlink()
+    with pytest.raises(doc_tables.SourceError, match="no results/bench/external_throughput"):
+        doc_tables.external_throughput_source(tmp_path)

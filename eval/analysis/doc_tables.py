@@ -51,7 +51,7 @@ INDEX = Path("results/INDEX.md")
 CODE_BEFORE_PROVENANCE = Path("results/code_before_provenance.json")
 """Folder -> the commits noted for its runs made before provenance.json was recorded."""
 DOCUMENTS = (Path("README.md"), Path("docs/results.md"), Path("docs/environment.md"), Path("docs/speed.md"),
-             Path("docs/sweeps.md"), Path("docs/index.md"), Path("docs/training.md"), INDEX)
+             Path("docs/sweeps.md"), Path("docs/index.md"), Path("docs/training.md"), Path("docs/external-tasks.md"), INDEX)
 START_DISTRIBUTIONS = ("auxss", "uniform_ss", "omega_ss", "goaldist_ss", "reverse_ss")
 _BLOCK = re.compile(r"(<!-- generated: (?P<name>[a-z-]+) -->\n).*?(<!-- end: (?P=name) -->)", re.S)
 
@@ -392,6 +392,52 @@ def sac_throughput_source(root: Path) -> tuple[str, str]:
     return tuple((root / BENCH / f"sac_throughput_64_t{threads}.txt").read_text() for threads in (1, 2))
 
 
+def external_tasks(text: str) -> list[str]:
+    """bench/external_tasks.py: per task and policy, success and mean length from p0 and from ood; then the env
+    steps/s of random actions per task."""
+    rows: dict[tuple[str, str], dict[str, tuple[str, str]]] = {}
+    for task, policy, start, _, success, length in _matches(
+            r"^\| (\S+) \| (\w+) \| (p0|ood) \| (\d+) \| ([\d.]+) \| ([\d.]+) \|$", text, "external_tasks.txt"):
+        rows.setdefault((task, policy), {})[start] = (success, length)
+    lines = ["| task | policy | success from p0 | mean length from p0 | success from ood | mean length from ood |",
+             "|---|---|---:|---:|---:|---:|"]
+    for (task, policy), starts in rows.items():
+        cells = [value for start in ("p0", "ood") for value in starts.get(start, ("-", "-"))]
+        lines.append(f"| {task} | {policy} | " + " | ".join(cells) + " |")
+    rates = _matches(r"^(\S+): ([\d,]+) env steps/s of random actions", text, "external_tasks.txt")
+    return lines + ["", "Env steps/s of random actions through `make_task_env`'s wrappers: "
+                    + ", ".join(f"{rate} on {task}" for task, rate in rates) + "."]
+
+
+STUDY_SEED_STEPS = 10 * 300_000
+"""The cost unit of the external tasks' throughput table: 10 seeds trained to the largest budget a study may use."""
+
+
+def external_throughput_source(root: Path) -> dict[str, str]:
+    """bench/external_throughput.py's outputs: task -> its file's text, the default task's file first."""
+    files = sorted((root / BENCH).glob("external_throughput*.txt"), key=lambda f: (f.stem != "external_throughput", f.name))
+    if not files:
+        raise SourceError(f"no {BENCH}/external_throughput*.txt: run `python bench/external_throughput.py`")
+    return {_matches(r"^# SAC throughput on (\S+):", f.read_text(), f.name)[0]: f.read_text() for f in files}
+
+
+def external_throughput(texts: dict[str, str]) -> list[str]:
+    """bench/external_throughput.py per task: seed-steps/s, the ratios to SB3 and to one seed, and the hours 10
+    seeds x 300,000 steps take at that rate; then each run's command and load."""
+    lines = ["| task | trainer | seed-steps/s | x SB3 | x K=1 | hours per 10 seeds x 300,000 steps |",
+             "|---|---|---:|---:|---:|---:|"]
+    notes = []
+    for task, text in texts.items():
+        for trainer, rate, sb3, single in _matches(r"^\| \d+ \| (SB3 SAC|ours K=\d+) \| (\d+) \| ([\d.]+) \| ?([\d.]*) ?\|$",
+                                                   text, f"external_throughput on {task}"):
+            lines.append(f"| {task} | {trainer} | {rate} | {sb3} | {single} | {STUDY_SEED_STEPS / int(rate) / 3600:.1f} |")
+        command = _matches(r"^`(python bench/external_throughput\.py[^`]*)`$", text, f"external_throughput on {task}")[0]
+        load = re.search(r"load average ([\d.]+) at the start", text)
+        notes.append(f"`{command}`" + (f" (one-minute load average {load[1]} as it began)" if load else
+                                       " (measured beside other processes; load not recorded)"))
+    return lines + ["", "Made by " + "; ".join(notes) + "."]
+
+
 WAIT_POLICIES = {"PASSIVE (CLI default)": "`PASSIVE` (what the CLI sets)",
                  "libgomp default": "libgomp's default (before)"}
 
@@ -671,6 +717,8 @@ PARTS: dict[str, Part] = {
     "speed-update": Part(bench_text("update_speed.txt"), update_speed_table),
     "speed-sac-throughput": Part(sac_throughput_source, sac_throughput_table),
     "speed-vector-env": Part(bench_text("env_throughput.txt"), vector_table),
+    "external-tasks": Part(bench_text("external_tasks.txt"), external_tasks),
+    "external-throughput": Part(external_throughput_source, external_throughput),
     "speed-threads": Part(bench_text("threads_under_load.txt"), threads_table),
     "speed-single-seed": Part(bench_text("single_seed_speed.txt"), single_seed_speed),
     "tracking-cost": Part(bench_text("tracking_cost.txt"), tracking_cost),
