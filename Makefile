@@ -10,7 +10,7 @@ MKDOCS := NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs
 MESA_PACKAGES := libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 libosmesa6
 export MUJOCO_GL ?= egl
 
-.PHONY: run main-budget expert-video task-pictures test docs bench study study-extension study-rfcl report compress-results setup gl browser clean
+.PHONY: run main-budget external-screening expert-video task-pictures test docs bench study study-extension study-rfcl report compress-results setup gl browser clean
 
 # The main job: what the package is for, AuxSS against SAC from p0 on the same 5 seeds (80,000 steps, as
 # one sweep of two 5-seed jobs, one per core; 17 min on the idle 2-core machine, set-up included), then the report
@@ -34,6 +34,15 @@ main-budget: setup
 	$(BIN)/lava-bridge-bench sweep --methods auxss,sac --seeds 0-4 --steps 80000 --eval-every 5000 --workers 2 \
 	    --out runs/main_budget
 	$(BIN)/lava-bridge-bench export runs/main_budget results/main_budget
+	$(BIN)/python -m lava_bridge_mj.eval.analysis.doc_tables
+
+# The external tasks' screening on the tuning seeds 100-104 (docs/external-tasks.md, "Screening"): SAC from
+# p0 and AuxSS on both mazes to 300,000 steps, evaluated every 25,000; its rule picks each maze's study
+# budget (eval/analysis/doc_tables.py, screening_budget).
+external-screening: setup
+	$(BIN)/lava-bridge-bench sweep --methods sac,auxss --envs PointMaze_Medium-v3,PointMaze_Large-v3 --seeds 100-104 \
+	    --steps 300000 --eval-every 25000 --seeds-per-job 5 --workers 2 --out runs/external_screening
+	$(BIN)/lava-bridge-bench export runs/external_screening results/external_screening
 	$(BIN)/python -m lava_bridge_mj.eval.analysis.doc_tables
 
 expert-video: setup

@@ -285,13 +285,13 @@ def test_the_main_budget_table_counts_seeds_reaching_08_by_each_budget(tmp_path)
     never = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.78]
     for folder, curves in (("auxss-d500", (auxss, later, never)), ("sac-d500", ([0.0] * 8,) * 3)):
         for seed, successes in enumerate(curves):
-            run = tmp_path / doc_tables.MAIN_BUDGET / folder / f"seed{seed}"
+            run = tmp_path / doc_tables.MAIN_BUDGET.folder / folder / f"seed{seed}"
             run.mkdir(parents=True)
             with (run / "metrics.csv").open("w", newline="") as f:
                 writer = csv.writer(f)
                 writer.writerow(["step", "success_p0"])
                 writer.writerows([[10_000 * (i + 1), s] for i, s in enumerate(successes)])
-    table = doc_tables.main_budget_table(doc_tables.main_budget_source(tmp_path))
+    table = doc_tables.budget_table(doc_tables.budget_source(doc_tables.MAIN_BUDGET)(tmp_path))
     assert table == [
         "| | seed 0 | seed 1 | seed 2 |", "|---|---:|---:|---:|",
         "| AuxSS: first step at p0 success >= 0.8 | 50,000 | 70,000 | not by 80,000 |",
@@ -302,8 +302,49 @@ def test_the_main_budget_table_counts_seeds_reaching_08_by_each_budget(tmp_path)
 
 
 def test_the_main_budget_source_names_a_folder_without_runs(tmp_path):
-    with pytest.raises(ValueError, match="auxss-d500 holds no runs"):
-        doc_tables.main_budget_source(tmp_path)
+    with pytest.raises(doc_tables.SourceError, match="auxss-d500 holds no runs"):
+        doc_tables.budget_source(doc_tables.MAIN_BUDGET)(tmp_path)
+
+
+def screening_runs(tmp_path, demo, sac, every=25_000):
+    """A hand-built screening folder: per group, per seed, success from p0 at every `every` steps."""
+    task = doc_tables.EXTERNAL_SCREENING / "Maze-v0"
+    for folder, curves in (("auxss-d500", demo), ("sac-d500", sac)):
+        for seed, successes in enumerate(curves, start=100):
+            run = tmp_path / task / folder / f"seed{seed}"
+            run.mkdir(parents=True)
+            with (run / "metrics.csv").open("w", newline="") as f:
+                writer = csv.writer(f)
+                writer.writerow(["step", "success_p0"])
+                writer.writerows([[every * (i + 1), s] for i, s in enumerate(successes)])
+    return doc_tables.budget_source(doc_tables.BudgetRuns(task, doc_tables.SCREENING_BUDGETS))(tmp_path)
+
+
+def test_the_screening_rule_picks_the_first_budget_where_the_demo_strategy_solves_and_sac_does_not(tmp_path):
+    # AuxSS seeds first reach 0.8 at 50k, 50k, 75k, 100k and never; SAC's at 100k (two seeds) and never
+    demo = [[0, .8, 1, 1], [0, .9, 1, 1], [0, .5, .8, 1], [0, 0, .1, .8], [0, 0, 0, 0]]
+    sac = [[0, 0, 0, .9], [0, 0, .2, .85], [0, 0, 0, 0], [0, 0, 0, 0], [0, 0, 0, 0]]
+    data = screening_runs(tmp_path, demo, sac)
+    assert doc_tables.screening_budget(data) is None  # 4 of 5 AuxSS seeds by 100k, but 2 of 5 SAC seeds too
+    assert doc_tables.screening_table(data)[-1] == (
+        "By the screening rule, **no budget up to 100,000 steps**: this task does not separate a demo strategy "
+        "from SAC from p0.")
+    sac[1] = [0, 0, .2, .7]  # one SAC seed at 100k: the rule holds there
+    assert doc_tables.screening_budget(screening_runs(tmp_path / "b", demo, sac)) == 100_000
+    demo[3] = [0, .8, 1, 1]  # four AuxSS seeds by 75k
+    table = doc_tables.screening_table(screening_runs(tmp_path / "c", demo, sac))
+    assert table[-1] == "By the screening rule, the study's budget: **75,000 steps**."
+    assert "| 75,000 | 4 of 5 | 0 of 5 | 0.0476 |" in table
+
+
+def test_the_screening_rule_waits_for_every_seed_to_reach_a_budget(tmp_path):
+    demo = [[0, .8, 1, 1]] * 5
+    sac = [[0, 0, 0, 0]] * 4 + [[0, 0]]  # one SAC seed evaluated only to 50k
+    data = screening_runs(tmp_path, demo, sac)
+    assert doc_tables.screening_budget(data) == 50_000
+    data = screening_runs(tmp_path / "b", [[0, .1, .8, 1]] * 5, sac)  # solved only at 75k: past the last SAC seed
+    assert doc_tables.screening_budget(data) is None
+    assert "no budget up to 50,000 steps" in doc_tables.screening_table(data)[-1]
 
 
 def difficulty_record(histogram, unsafe_x=(-1.714, 1.426)):

@@ -574,46 +574,93 @@ def netsize_table(groups: list[tuple[int, dict[int, list[tuple[int, float]]]]], 
     return lines
 
 
-MAIN_BUDGET = Path("results/main_budget")
+@dataclass(frozen=True)
+class BudgetRuns:
+    """Two groups of runs in one folder, a demo strategy's (first) and SAC's from p0, read at several budgets."""
+    folder: Path
+    budgets: tuple[int, ...]
+    groups: tuple[tuple[str, str], tuple[str, str]] = (("auxss-d500", "AuxSS"), ("sac-d500", "SAC from p0"))
+
+
+MAIN_BUDGET = BudgetRuns(Path("results/main_budget"), (40_000, 50_000, 60_000, 70_000, 80_000))
 """The main job's groups at evaluations every 5,000 steps (`make main-budget`)."""
-MAIN_BUDGET_GROUPS = (("auxss-d500", "AuxSS"), ("sac-d500", "SAC from p0"))
-MAIN_BUDGET_STEPS = (40_000, 50_000, 60_000, 70_000, 80_000)
+EXTERNAL_SCREENING = Path("results/external_screening")
+"""The external tasks' screening on the tuning seeds (`make external-screening`), a folder per task."""
+SCREENING_BUDGETS = tuple(range(25_000, 300_001, 25_000))
+SCREENING_RULE = (4, 1)
+"""A task's study budget: the first screening budget by which at least 4 of the 5 seeds of the demo
+strategy, and at most 1 of SAC's from p0, have reached p0 success 0.8 (`screening_budget`)."""
+
+Curves = dict[str, dict[int, list[tuple[int, float]]]]
 
 
-def main_budget_source(root: Path) -> dict[str, dict[int, list[tuple[int, float]]]]:
-    """Per group of MAIN_BUDGET_GROUPS, per seed: (step, success from p0) at every evaluation."""
-    groups = {}
-    for folder, _ in MAIN_BUDGET_GROUPS:
-        curves = {}
-        for run in sorted((root / MAIN_BUDGET / folder).glob("seed*")):
-            with (run / "metrics.csv").open() as f:
-                curves[int(run.name[4:])] = [(int(r["step"]), float(r["success_p0"])) for r in csv.DictReader(f)]
-        if not curves:
-            raise ValueError(f"{MAIN_BUDGET / folder} holds no runs (seedN folders)")
-        groups[folder] = curves
-    return groups
+def budget_source(runs: BudgetRuns) -> Callable[[Path], tuple[BudgetRuns, Curves]]:
+    """A part's source: per group of `runs`, per seed, (step, success from p0) at every evaluation."""
+    def source(root: Path) -> tuple[BudgetRuns, Curves]:
+        groups = {}
+        for folder, _ in runs.groups:
+            curves = {}
+            for run in sorted((root / runs.folder / folder).glob("seed*")):
+                with (run / "metrics.csv").open() as f:
+                    curves[int(run.name[4:])] = [(int(r["step"]), float(r["success_p0"])) for r in csv.DictReader(f)]
+            if not curves:
+                raise SourceError(f"{runs.folder / folder} holds no runs (seedN folders)")
+            groups[folder] = curves
+        return runs, groups
+    source.__name__ = f"budget_source({runs.folder})"
+    return source
 
 
-def main_budget_table(groups: dict[str, dict[int, list[tuple[int, float]]]], threshold: float = 0.8) -> list[str]:
-    """Each seed's first evaluation with success from p0 >= `threshold`, then per budget of
-    MAIN_BUDGET_STEPS how many seeds of each group had reached it, and Fisher's exact p of the difference."""
-    firsts = {folder: {seed: next((step for step, success in curve if success >= threshold), None)
-                       for seed, curve in curves.items()} for folder, curves in groups.items()}
-    (folder_a, name_a), (folder_b, name_b) = MAIN_BUDGET_GROUPS
+def first_reached(groups: Curves, threshold: float) -> dict[str, dict[int, int | None]]:
+    """Per group, per seed: the step of its first evaluation with success from p0 >= `threshold` (None: never)."""
+    return {folder: {seed: next((step for step, success in curve if success >= threshold), None)
+                     for seed, curve in curves.items()} for folder, curves in groups.items()}
+
+
+def reached_by(firsts: dict[int, int | None], budget: int) -> int:
+    return sum(first is not None and first <= budget for first in firsts.values())
+
+
+def budget_table(data: tuple[BudgetRuns, Curves], threshold: float = 0.8) -> list[str]:
+    """Each seed's first evaluation with success from p0 >= `threshold`, then per budget how many seeds of
+    each group had reached it, and Fisher's exact p of the difference."""
+    runs, groups = data
+    firsts = first_reached(groups, threshold)
+    (folder_a, name_a), (folder_b, name_b) = runs.groups
     lines = ["| | " + " | ".join(f"seed {s}" for s in sorted(firsts[folder_a])) + " |",
              "|---|" + "---:|" * len(firsts[folder_a])]
-    for folder, name in MAIN_BUDGET_GROUPS:
+    for folder, name in runs.groups:
         ends = {seed: curve[-1][0] for seed, curve in groups[folder].items()}
         lines.append(f"| {name}: first step at p0 success >= {threshold} | " + " | ".join(
             f"{first:,}" if first is not None else f"not by {ends[seed]:,}"
             for seed, first in sorted(firsts[folder].items())) + " |")
     lines += ["", f"| budget | {name_a}: seeds reached | {name_b}: seeds reached | Fisher's exact p |", "|---:|---:|---:|---:|"]
-    for budget in MAIN_BUDGET_STEPS:
-        counts = [(sum(first is not None and first <= budget for first in firsts[folder].values()), len(firsts[folder]))
-                  for folder, _ in MAIN_BUDGET_GROUPS]
-        (a, n_a), (b, n_b) = counts
+    for budget in runs.budgets:
+        (a, n_a), (b, n_b) = ((reached_by(firsts[folder], budget), len(firsts[folder])) for folder, _ in runs.groups)
         lines.append(f"| {budget:,} | {a} of {n_a} | {b} of {n_b} | {statistics.fisher_p(a, n_a, b, n_b):.3g} |")
     return lines
+
+
+def screening_budget(data: tuple[BudgetRuns, Curves], threshold: float = 0.8) -> int | None:
+    """The first budget of the screening by which SCREENING_RULE holds, or None: the demo strategy solves
+    the task there and SAC from p0 does not. Every seed of both groups must have been evaluated to it."""
+    runs, groups = data
+    firsts = first_reached(groups, threshold)
+    (demo, _), (sac, _) = runs.groups
+    at_least, at_most = SCREENING_RULE
+    trained_to = min(curve[-1][0] for curves in groups.values() for curve in curves.values())
+    return next((budget for budget in runs.budgets if budget <= trained_to and reached_by(firsts[demo], budget)
+                 >= at_least and reached_by(firsts[sac], budget) <= at_most), None)
+
+
+def screening_table(data: tuple[BudgetRuns, Curves], threshold: float = 0.8) -> list[str]:
+    """`budget_table` for one external task's screening, then the budget its rule picks."""
+    runs, groups = data
+    budget = screening_budget(data, threshold)
+    trained_to = min(curve[-1][0] for curves in groups.values() for curve in curves.values())
+    verdict = (f"the study's budget: **{budget:,} steps**" if budget is not None else
+               f"**no budget up to {trained_to:,} steps**: this task does not separate a demo strategy from SAC from p0")
+    return budget_table(data, threshold) + ["", f"By the screening rule, {verdict}."]
 
 
 # --- the results index (results/*/.../config.json, provenance.json, metrics.csv) ----------------------------
@@ -724,7 +771,7 @@ PARTS: dict[str, Part] = {
     "tracking-cost": Part(bench_text("tracking_cost.txt"), tracking_cost),
     "speed-netsize": Part(netsize_source, netsize_table),
     "sweep-scaling": Part(bench_text("sweep_scaling.txt"), sweep_scaling_table),
-    "main-budget": Part(main_budget_source, main_budget_table),
+    "main-budget": Part(budget_source(MAIN_BUDGET), budget_table),
     "results-index": Part(results_source, results_index)}
 
 
