@@ -85,6 +85,9 @@ STUDY_SEEDS := 0-19
 # reference task gets runs/study/LavaBridge-v0 as its --out: every task then has its own directory.
 STUDY_SWEEP_OPTIONS := --eval-every 10000 --seeds-per-job 10 --workers 2 --threads 1
 STUDY_SWEEP := $(BIN)/lava-bridge-bench sweep --seeds $(STUDY_SEEDS) $(STUDY_SWEEP_OPTIONS)
+# After each export, results/study keeps only the episode logs its report reads: reverse_ss's
+# (eval/analysis/report.py, LOG_READ_METHODS); every run's metrics and start weights stay.
+STUDY_KEEP_LOGS := $(BIN)/python -m lava_bridge_mj.eval.training.compress results/study --keep-logs-of reverse_ss
 study: setup
 	$(STUDY_SWEEP) --methods $(STUDY_STARTS) --envs LavaBridgeDecoy-v0,LavaBridgeFarStart-v0 --steps 100000 --out runs/study
 	$(STUDY_SWEEP) --methods $(STUDY_STARTS) --envs LavaBridgeTwoCrossings-v0 --steps 300000 --out runs/study
@@ -95,6 +98,7 @@ study: setup
 	$(STUDY_SWEEP) --methods $(STUDY_BASELINES) --envs LavaBridge-v0 --steps 100000 --out runs/study/LavaBridge-v0
 	$(STUDY_SWEEP) --methods $(STUDY_BASELINES) --envs LavaBridgeTwoCrossings-v0 --steps 300000 --out runs/study
 	$(BIN)/lava-bridge-bench export runs/study results/study
+	$(STUDY_KEEP_LOGS)
 
 # The seed extension: after the first 20 seeds the study's table of answers asks for at most 46-49 seeds per
 # group, so every group of a comparison still open trains seeds 20-48 (open: undecided, or
@@ -121,6 +125,7 @@ study-extension: setup
 	    --steps 100000 --out runs/study/LavaBridge-v0
 	$(STUDY_EXTENSION) --methods auxss,uniform_ss,omega_ss,goaldist_ss --envs LavaBridgeTwoCrossings-v0 --steps 300000 --out runs/study
 	$(BIN)/lava-bridge-bench export runs/study results/study
+	$(STUDY_KEEP_LOGS)
 
 # RFCL as published (rfcl: its reverse and forward curricula; rfcl_reverse: the reverse one alone) on every
 # task of the suite, at the study's budgets, seeds and sweep options; the study's second question then reads
@@ -137,6 +142,7 @@ study-rfcl: setup
 	$(STUDY_SWEEP) --methods $(STUDY_RFCL) --envs LavaBridge-v0 --steps 100000 --out runs/study/LavaBridge-v0
 	$(STUDY_SWEEP) --methods $(STUDY_RFCL) --envs LavaBridgeTwoCrossings-v0 --steps 300000 --out runs/study
 	$(BIN)/lava-bridge-bench export runs/study results/study
+	$(STUDY_KEEP_LOGS)
 
 # docs/results.md's tables and figures, regenerated from the committed metrics in results/ (no training):
 # every method at the 100k protocol budget, AuxSS, SAC and Omega-SS at the paper's 300k, the AuxSS ablations,

@@ -4,6 +4,7 @@ a resumed run from a plain log, and reports that read the same from either form.
 
 import gzip
 import io
+import re
 import shutil
 from pathlib import Path
 
@@ -214,3 +215,68 @@ def test_a_converted_runs_report_equals_its_report_before_conversion(tmp_path):
     for seed in (10, 11):  # the log is read: without it the report says less
         (runs / f"seed{seed}" / EPISODE_LOG).unlink()
     assert report("none")["report.md"] != before["report.md"]
+
+
+def run_with_log(run_dir, method, compressed):
+    run_dir.mkdir(parents=True)
+    if method is not None:
+        (run_dir / "config.json").write_text(f'{{"method": "{method}"}}')
+    if compressed:
+        run_files.write_episode_log(run_dir, ROWS)
+    else:
+        write_plain(run_dir, ROWS)
+    np.savez(run_dir / START_WEIGHTS, **weights(0))
+
+
+def test_keep_logs_of_deletes_only_the_other_methods_logs(tmp_path, capsys):
+    runs = {"auxss": (tmp_path / "auxss-d500" / "seed0", "auxss", True),
+            "sac": (tmp_path / "sac-d500" / "seed0", "sac", False),
+            "reverse": (tmp_path / "reverse_ss-d500" / "seed0", "reverse_ss", False),
+            "unknown": (tmp_path / "loose" / "seed0", None, True)}
+    for run_dir, method, compressed in runs.values():
+        run_with_log(run_dir, method, compressed)
+    assert compress.main([str(tmp_path), "--keep-logs-of", "reverse_ss,rfcl"]) == 1  # one run could not say
+    out, err = capsys.readouterr()
+    assert "deleted 2 episode logs" in out
+    assert f"{runs['unknown'][0]}: no config.json naming its method; its episode log is kept" in err
+    for name in ("auxss", "sac"):
+        assert run_files.episode_log_file(runs[name][0]) is None
+    assert run_files.read_episode_log(runs["reverse"][0] / EPISODE_LOG) == run_files.episode_log_text(ROWS)
+    assert not (runs["reverse"][0] / PLAIN_EPISODE_LOG).exists()
+    assert (runs["unknown"][0] / EPISODE_LOG).is_file()
+    for run_dir, _, _ in runs.values():  # start weights are converted whatever the method
+        assert (run_dir / START_WEIGHTS).read_bytes() == npz_bytes(**weights(0))
+
+
+def test_keep_logs_of_refuses_a_method_it_does_not_know_and_deletes_nothing(tmp_path, capsys):
+    run_with_log(tmp_path / "seed0", "auxss", True)
+    with pytest.raises(SystemExit) as exit_:
+        compress.main([str(tmp_path), "--keep-logs-of", "reverse-ss"])
+    assert exit_.value.code == 2
+    assert "unknown method(s) 'reverse-ss'; expected some of sac, auxss" in capsys.readouterr().err
+    assert (tmp_path / "seed0" / EPISODE_LOG).is_file()
+
+
+def test_the_study_keeps_the_logs_its_report_reads_and_the_report_is_the_same_without_the_others(tmp_path):
+    from lava_bridge_mj.eval.analysis.report import LOG_READ_METHODS
+
+    makefile = (ROOT / "Makefile").read_text()
+    [kept] = re.findall(r"^STUDY_KEEP_LOGS := .* results/study --keep-logs-of (\S+)$", makefile, re.MULTILINE)
+    assert kept.split(",") == list(LOG_READ_METHODS)
+    source = ROOT / "results/study/LavaBridge-v0"
+    runs = tmp_path / "runs"
+    for method in ("auxss", "reverse_ss"):
+        for seed in (10, 11):
+            shutil.copytree(source / f"{method}-d500" / f"seed{seed}", runs / f"{method}-d500" / f"seed{seed}")
+            # every run with a log, as the trainer leaves it
+            reverse_log = run_files.episode_log_file(source / f"reverse_ss-d500/seed{seed}")
+            shutil.copy(reverse_log, runs / f"{method}-d500" / f"seed{seed}" / EPISODE_LOG)
+
+    def report(name):
+        assert cli.main(["report", str(runs), "--seeds", "10-11", "--out", str(tmp_path / name)]) == 0
+        return (tmp_path / name / "report.md").read_bytes()
+
+    before = report("all_logs")
+    assert compress.main([str(runs), "--keep-logs-of", kept]) == 0
+    assert [run_files.episode_log_file(runs / "auxss-d500" / f"seed{seed}") for seed in (10, 11)] == [None, None]
+    assert report("kept_logs") == before

@@ -179,6 +179,9 @@ def _write_report(out: Path, roots: list[Path], groups: list[Group], curves: dic
 
 
 MAZE_STRATEGIES = {"auxss": "AuxSS", "reverse_ss": "reverse_ss"}
+LOG_READ_METHODS = ("reverse_ss",)
+"""The methods whose episode logs the report reads (`_curriculum_lines`: how each seed's curriculum
+stalled); results/study keeps no other method's logs (the Makefile's STUDY_KEEP_LOGS)."""
 """The start strategies whose start-state probabilities the report paints on the maze, with their
 names in its text: AuxSS always (the paper's figure), RFCL's reverse curriculum when it has runs."""
 
@@ -241,7 +244,7 @@ def _curriculum_lines(groups: list[Group], warnings: list[str]) -> list[str]:
     """The paragraph and table of how far each reverse_ss seed's curriculum came (`curriculum_progress`).
     A start_weights.npz that cannot be read is passed over, with a line in `warnings`."""
     rows, stall_rows = [], []
-    for group in benchmark_groups(groups, ("reverse_ss",)):
+    for group in benchmark_groups(groups, LOG_READ_METHODS):
         done, cells, stalls = 0, [], {}
         for run in group.runs:
             if not (run.path / "start_weights.npz").is_file():

@@ -11,6 +11,13 @@ more (a log killed between the two steps, compressed but with its plain file sti
 the plain file goes once the compressed one is checked against it).
 
     python -m lava_bridge_mj.eval.training.compress results/study/LavaBridge-v0     # or: make compress-results
+
+With `--keep-logs-of METHODS`, the episode logs of runs of any other method (config.json's `method`)
+are deleted instead: a folder of results keeps the logs its reports read and no others (the study
+keeps reverse_ss's, whose curriculum tables the report draws from them). A run's log is rewritten
+bit for bit by running the run again with its config.json on the same kind of processor.
+
+    python -m lava_bridge_mj.eval.training.compress results/study --keep-logs-of reverse_ss
 """
 
 from __future__ import annotations
@@ -25,8 +32,9 @@ from pathlib import Path
 from lava_bridge_mj.eval.training.atomic import atomic_write
 import numpy as np
 
+from lava_bridge_mj.agents.methods import METHODS
 from lava_bridge_mj.eval.training.run_files import (EPISODE_LOG, PLAIN_EPISODE_LOG, START_WEIGHTS, gzip_bytes,
-                                                    npz_bytes, read_episode_log, read_npz)
+                                                    npz_bytes, read_config, read_episode_log, read_npz)
 
 
 @dataclass
@@ -48,9 +56,11 @@ class Converted:
 
 @dataclass
 class Compressed:
-    """What `compress` did: the episode logs and start weights converted, and the files it refused."""
+    """What `compress` did: the episode logs and start weights converted, the logs deleted, and the files it
+    refused."""
     logs: Converted = field(default_factory=Converted)
     weights: Converted = field(default_factory=Converted)
+    deleted: Converted = field(default_factory=Converted)
     refused: list[str] = field(default_factory=list)
 
 
@@ -116,18 +126,56 @@ def compress_weights(path: Path, done: Compressed) -> None:
     done.weights.add(len(data), len(payload))
 
 
-def compress(directories: list[Path]) -> Compressed:
+def keeps_log(run_dir: Path, keep_logs_of: frozenset[str] | None, done: Compressed) -> bool:
+    """Whether the episode log of `run_dir` stays: always without `keep_logs_of`, else when the run's method
+    is one of them. A run whose method cannot be read keeps its log and is named in `done.refused`."""
+    if keep_logs_of is None:
+        return True
+    try:
+        config = read_config(run_dir)
+    except ValueError as error:  # damaged: the run cannot say what it is
+        done.refused.append(f"{error}; its episode log is kept")
+        return True
+    method = config.get("method") if config else None
+    if not isinstance(method, str):
+        done.refused.append(f"{run_dir}: no config.json naming its method; its episode log is kept")
+        return True
+    return method in keep_logs_of
+
+
+def delete_logs(run_dir: Path, done: Compressed) -> None:
+    """Delete the run's episode log, compressed and plain."""
+    for log in (run_dir / EPISODE_LOG, run_dir / PLAIN_EPISODE_LOG):
+        if log.is_file():
+            done.deleted.add(log.stat().st_size, 0)
+            log.unlink()
+
+
+def compress(directories: list[Path], keep_logs_of: frozenset[str] | None = None) -> Compressed:
     """Convert every plain episode log and every start_weights.npz not yet in the trainer's form under
-    `directories`, in sorted order."""
+    `directories`, in sorted order; with `keep_logs_of`, delete the episode logs of runs of other methods."""
     done = Compressed()
     for directory in directories:
-        for plain in sorted(directory.rglob(PLAIN_EPISODE_LOG)):
-            if plain.is_file():
-                compress_log(plain, done)
+        logs = {log.parent for name in (PLAIN_EPISODE_LOG, EPISODE_LOG) for log in directory.rglob(name) if log.is_file()}
+        for run_dir in sorted(logs):
+            if not keeps_log(run_dir, keep_logs_of, done):
+                delete_logs(run_dir, done)
+            elif (run_dir / PLAIN_EPISODE_LOG).is_file():
+                compress_log(run_dir / PLAIN_EPISODE_LOG, done)
         for weights in sorted(directory.rglob(START_WEIGHTS)):
             if weights.is_file():
                 compress_weights(weights, done)
     return done
+
+
+def methods(text: str) -> frozenset[str]:
+    """--keep-logs-of's value: known method names only, so that a misspelt one never deletes every log."""
+    names = frozenset(text.split(","))
+    unknown = sorted(names - set(METHODS))
+    if unknown:
+        raise argparse.ArgumentTypeError(f"unknown method(s) {', '.join(map(repr, unknown))}; expected some of "
+                                         f"{', '.join(METHODS)}")
+    return names
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -135,19 +183,24 @@ def main(argv: list[str] | None = None) -> int:
                                      epilog="exits 1 when a file was refused, 2 on bad arguments")
     parser.add_argument("directories", nargs="+", type=Path, metavar="DIR",
                         help="a directory of run directories (any depth), e.g. results/study/LavaBridge-v0")
+    parser.add_argument("--keep-logs-of", metavar="METHODS", type=methods,
+                        help="comma-separated methods (e.g. reverse_ss): delete the episode logs of every other "
+                             "method's runs")
     args = parser.parse_args(argv)
     for directory in args.directories:
         if not directory.is_dir():
             parser.error(f"DIR {str(directory)!r} is not a directory")
     try:
-        done = compress(args.directories)
+        done = compress(args.directories, args.keep_logs_of)
     except OSError as error:  # a full disk, a read-only tree: the file being converted is left as it was
         print(f"{parser.prog}: error: {error}", file=sys.stderr)
         return 1
     for refusal in done.refused:
         print(f"refused: {refusal}", file=sys.stderr)
+    deleted = f"; deleted {done.deleted.files} episode logs ({done.deleted.bytes_before:,} bytes)" \
+        if args.keep_logs_of is not None else ""
     print(f"compressed {done.logs.files} episode logs: {done.logs}; {done.weights.files} start weights: "
-          f"{done.weights}; {len(done.refused)} refused")
+          f"{done.weights}{deleted}; {len(done.refused)} refused")
     return 1 if done.refused else 0
 
 
