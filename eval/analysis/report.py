@@ -16,6 +16,8 @@ several tasks):
                        an AuxSS run's start-state probabilities on those states at a few evaluations
     maze_reverse_ss    the same for a reverse_ss run (RFCL's reverse curriculum), when DIR has one: its
                        start state on each demo episode moving back from the goal, then p0
+                       (both maze figures for the Lava Bridge tasks only: another task's part, such as an
+                       external task's, says they are skipped)
 and report.md, which embeds the PNGs (relative links) with its tables: how far each reverse_ss seed's
 curriculum came (when it reached p0, or how far back along the demo episodes its starts were), IQM and
 95% CI at the last evaluation per group, the steps to p0 success >= 0.8 with how many seeds got there, the reach counts
@@ -68,6 +70,7 @@ from lava_bridge_mj.eval.analysis.report_tables import (counted, findings_sectio
                                                         threshold_table)
 from lava_bridge_mj.eval.analysis.study import Question, answer_questions, answers_record
 from lava_bridge_mj.eval.analysis.summary import CurriculumStall, curriculum_progress, curriculum_stall, read_start_weights
+from lava_bridge_mj.external import EXTERNAL_TASKS
 from lava_bridge_mj.tasks import DEFAULT_ENV_ID, SUITE
 
 MAX_REPS = 100_000
@@ -337,9 +340,12 @@ def _task_sections(groups: list[Group], questions: list[Question], curves: dict,
                "them for all but reverse_ss, whose candidates are whole demo episodes).",
                f"none of {', '.join(START_STUDY)} has runs here.", START_STUDY)
     maze = groups[0].task in lava_bridge_mj.TASKS  # another env has no maze to draw its start states on
+    lines.extend(["", f"{heading} The maze and AuxSS's start weights", ""])
     if maze:
-        lines.extend(["", f"{heading} The maze and AuxSS's start weights", "",
-                      *_maze_section(groups, threshold, where, out, warnings, prefix + "maze", pdf=pdf)])
+        lines.extend(_maze_section(groups, threshold, where, out, warnings, prefix + "maze", pdf=pdf))
+    else:
+        lines.append(f"*Skipped: {groups[0].task} is not a Lava Bridge maze, whose picture the start weights are "
+                     f"drawn on; neither AuxSS's start weights nor the reverse curriculum's progress are shown.*")
     curricula = benchmark_groups(groups, ("reverse_ss",))
     if maze and any((run.path / "start_weights.npz").is_file() for g in curricula for run in g.runs):
         skipped: list[str] = []  # its own, so the AuxSS section's notes are not repeated under it
@@ -440,8 +446,9 @@ def task_seed_list(text: str) -> tuple[str, list[int]]:
     task, equals, seeds = text.partition("=")
     if not equals or not seeds.strip():
         raise argparse.ArgumentTypeError(f"expected TASK=SEEDS such as LavaBridgeTwoCrossings-v0=0-19, got {text!r}")
-    if task not in SUITE:
-        raise argparse.ArgumentTypeError(f"expected a task of the suite ({', '.join(SUITE)}) before '=', got {task!r}")
+    if task not in SUITE and task not in EXTERNAL_TASKS:
+        raise argparse.ArgumentTypeError(f"expected a task of the suite ({', '.join(SUITE)}) or an external task "
+                                         f"({', '.join(EXTERNAL_TASKS)}) before '=', got {task!r}")
     return task, seed_list(seeds)
 
 
