@@ -12,7 +12,8 @@ start room (where every p0 episode begins) over its logged evaluations up to STE
 start_weights.npz: docs/results.md's measure of how much a strategy still practises the p0 starts
 while it learns. Where the run logged its training episodes (episodes.csv.gz), it also adds how many
 training episodes started in the start room up to STEP and what share of them reached the goal:
-whether a seed that does not learn from p0 never tried from there, or tried and failed.
+whether a seed that does not learn from p0 never tried from there, or tried and failed. A run of
+another task than the Lava Bridge ones (an external task) has no start room: its cells say so.
 """
 
 from __future__ import annotations
@@ -85,6 +86,12 @@ def seed_summary(rows: list[dict[str, float]], threshold: float = THRESHOLD) -> 
     return {"steps_to_threshold": reached[0] if reached else math.nan,
             "best_p0": best["success_p0"], "best_step": best["step"],
             "last_step": rows[-1]["step"], "last_p0": rows[-1]["success_p0"], "last_ood": rows[-1]["success_ood"]}
+
+
+def has_start_room(run_dir: Path) -> bool:
+    """True for a run of a Lava Bridge task, whose maze has the start room the start-room measures count
+    in; another task (an external task, any other env) has none."""
+    return read_config(run_dir).get("env_id", lava_bridge_mj.ENV_ID) in lava_bridge_mj.TASKS
 
 
 def in_start_room(run_dir: Path, positions: np.ndarray) -> np.ndarray:
@@ -239,7 +246,7 @@ def markdown(path: Path, threshold: float = THRESHOLD, start_room_until: float |
              + (f" start-room share to {start_room_until:,.0f} | start-room training episodes (success) |"
                 if room else ""),
              "|---|---:|---:|---:|" + ("---:|---:|" if room else "")]
-    summaries, shares, episodes = [], [], []
+    summaries, shares, episodes, roomless = [], [], [], {}
     for run in run_dirs(path):
         rows = read_metrics(run)
         if not rows:
@@ -247,17 +254,26 @@ def markdown(path: Path, threshold: float = THRESHOLD, start_room_until: float |
         s = seed_summary(rows, threshold)
         summaries.append(s)
         first = "never" if math.isnan(s["steps_to_threshold"]) else f"{s['steps_to_threshold']:,.0f}"
-        shares.append(start_room_share(run, start_room_until) if room else math.nan)
-        episodes.append(start_room_episodes(run, start_room_until) if room else (0, math.nan))
-        count, success = episodes[-1]
-        share = f" {_number(shares[-1])} | {count} ({_number(success)}) |" if room else ""
+        share = ""
+        if room and not has_start_room(run):  # nothing to count in: no number, rather than a made-up 0
+            roomless.setdefault(read_config(run)["env_id"], []).append(run.name)
+            share = " no start room | no start room |"
+        elif room:
+            shares.append(start_room_share(run, start_room_until))
+            episodes.append(start_room_episodes(run, start_room_until))
+            count, success = episodes[-1]
+            share = f" {_number(shares[-1])} | {count} ({_number(success)}) |"
         lines.append(f"| {run.name} | {first} | {s['best_p0']:.2f} ({s['best_step']:,.0f}) | "
                      f"{s['last_p0']:.2f} / {s['last_ood']:.2f} (at {s['last_step']:,.0f}) |" + share)
     solved = sum(not math.isnan(s["steps_to_threshold"]) for s in summaries)
     mean = lambda key: sum(s[key] for s in summaries) / len(summaries)  # noqa: E731
     lines.append(f"| **all {len(summaries)}** | {solved} of {len(summaries)} reached it | "
                  f"mean {mean('best_p0'):.2f} | mean {mean('last_p0'):.2f} / {mean('last_ood'):.2f} |"
-                 + (f" mean {_number(np.mean(shares))} | {_pooled(episodes)} |" if room else ""))
+                 + (f" mean {_number(np.mean(shares))} | {_pooled(episodes)} |" if room and shares else
+                    " no start room | no start room |" if room else ""))
+    for task, runs in roomless.items():
+        lines += ["", f"{task} is not a Lava Bridge maze: it has no start room, and {', '.join(runs)} "
+                      f"{'has' if len(runs) == 1 else 'have'} no start-room measures."]
     return "\n".join(lines)
 
 
