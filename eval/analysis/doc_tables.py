@@ -115,11 +115,13 @@ def comparison_tables(record: dict) -> list[str]:
 
 
 def seeds_table(record: dict) -> list[str]:
-    """The seeds each start distribution's group holds, per task."""
-    lines = ["| task | " + " | ".join(START_DISTRIBUTIONS) + " |", "|---|" + "---|" * len(START_DISTRIBUTIONS)]
+    """The seeds each start distribution's group holds, per task; and RFCL's, where a task has rfcl runs (the
+    second question then reads AuxSS against it, eval/analysis/study.py)."""
+    columns = START_DISTRIBUTIONS + (("rfcl",) if any("rfcl" in a["seeds"] for a in record.values()) else ())
+    lines = ["| task | " + " | ".join(columns) + " |", "|---|" + "---|" * len(columns)]
     for task, answers in record.items():
         seeds = answers["seeds"]
-        cells = [f"{format_seeds(seeds[m])} ({len(seeds[m])})" if m in seeds else "-" for m in START_DISTRIBUTIONS]
+        cells = [f"{format_seeds(seeds[m])} ({len(seeds[m])})" if m in seeds else "-" for m in columns]
         lines.append(f"| {task} | " + " | ".join(cells) + " |")
     return lines
 
