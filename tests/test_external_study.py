@@ -92,6 +92,11 @@ def test_a_folder_of_a_lava_bridge_task_and_an_external_task_reports_both(tmp_pa
     assert (tmp_path / "report" / f"{LAVA_BRIDGE_TASK}_maze.png").is_file()
     assert not (tmp_path / "report" / f"{TASK}_maze.png").exists()
     assert f"*Skipped: {TASK} is not a Lava Bridge maze" in text.split(f"\n## {TASK}\n")[1]
+    # the second question names the method it was read against on each task
+    questions = {task: next(q["text"] for q in record[task]["questions"] if q["number"] == 2) for task in record}
+    assert questions == {LAVA_BRIDGE_TASK: "AuxSS or RFCL's reverse curriculum (reverse_ss)?",
+                         TASK: "AuxSS or RFCL as published (rfcl: its reverse and forward curricula)?"}
+    assert "### 2. AuxSS or RFCL as published (rfcl: its reverse and forward curricula)?" in text.split(f"\n## {TASK}\n")[1]
     # the README's and docs/results.md's tables from that answers.json: both tasks, RFCL's seeds beside reverse_ss's
     table = doc_tables.answer_table(record)
     assert [line.split(" | ")[0] for line in table[2:]] == [f"| {LAVA_BRIDGE_TASK}"] * 2 + [f"| {TASK}"] * 2

@@ -234,7 +234,7 @@ def study_overview(answers: dict[str, list[Question]]) -> list[str]:
     """One table of the study's answers on several tasks (task -> `study.answer_questions` of its
     groups): per task and question the verdict counts and the comparisons a test decided, a question
     none of whose pairs was run on a task said to be not run. Empty when no task answers any question."""
-    answered = {task: {q.text: q for q in questions} for task, questions in answers.items() if questions}
+    answered = {task: {q.short: q for q in questions} for task, questions in answers.items() if questions}
     if not answered:
         return []
     lines = ["Each task's answers to the study's questions, from its section \"The study's questions\" below: "
@@ -248,8 +248,8 @@ def study_overview(answers: dict[str, list[Question]]) -> list[str]:
         lines[0] += (f" *At {ALPHA:g} only*: decided at {ALPHA:g} but not at {level:.4f}, the level for each of the "
                      f"study's two looks ({looks[0]} and {looks[1]} seeds per group).")
     for task, questions in answered.items():
-        for number, (short, text, _) in enumerate(QUESTIONS, 1):
-            question = questions.get(text)
+        for number, (short, _, _) in enumerate(QUESTIONS, 1):
+            question = questions.get(short)
             lines.append(f"| {task} | {number}. {short} | {question.summary if question else 'not run'} | "
                          f"{'; '.join(question.decided) if question and question.decided else '-'} | "
                          f"{question.seeds_to_decide if question else '-'} |")

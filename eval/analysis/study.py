@@ -63,12 +63,14 @@ QUESTIONS = (
     ("safety-derived against undirected",
      "Does a safety-derived start distribution (AuxSS, Omega-SS) beat uniform and goal-distance starts "
      "(U-SS, GoalDist-SS)?", tuple((a, b) for a in SAFETY for b in UNDIRECTED)),
-    ("AuxSS against the reverse curriculum", "AuxSS or RFCL's reverse curriculum (reverse_ss)?",
-     (("auxss", ("rfcl", "reverse_ss")),)),
+    ("AuxSS against the reverse curriculum", "AuxSS or {rfcl}?", (("auxss", ("rfcl", "reverse_ss")),)),
 )
 """Each question's short name, its text and the (A, B) pairs that answer it, A the side the question
 asks about. A side given as a tuple of methods is the first of them that has a group on the task (the
-last when none has): RFCL as published stands in for the reverse curriculum where it was run."""
+last when none has): RFCL as published stands in for the reverse curriculum where it was run, and the
+text names the one read ({rfcl}: RFCL_NAMES)."""
+RFCL_NAMES = {"rfcl": "RFCL as published (rfcl: its reverse and forward curricula)",
+              "reverse_ss": "RFCL's reverse curriculum (reverse_ss)"}
 ASPECTS = (("learns faster", reach_comparison), ("more robust", robust_comparison))
 NO_COMMON_SEEDS = "no seed in common"
 AT_ONE_LOOK_ONLY = f"at {stats.ALPHA:g} only"
@@ -202,7 +204,8 @@ def answer_questions(groups: list[Group], looks: tuple[int, int] | None = None) 
                           stats.rate_difference(*item.counts) if item else None, absent,
                           next(strict) if item else None)
                    for a, b, aspect, item, absent in drafts]
-        questions.append(Question(short, text, answers, looks))
+        read = next((b for a, b, *_ in drafts if b in RFCL_NAMES), "reverse_ss")
+        questions.append(Question(short, text.format(rfcl=RFCL_NAMES[read]), answers, looks))
     return questions
 
 
@@ -224,12 +227,12 @@ def answers_record(answers: dict[str, list[Question]], groups: list[Group]) -> d
     for task, questions in answers.items():
         if not questions:
             continue
-        numbers = {text: number for number, (_, text, _) in enumerate(QUESTIONS, 1)}
+        numbers = {short: number for number, (short, _, _) in enumerate(QUESTIONS, 1)}
         record[task] = {
             "looks": list(questions[0].looks) if questions[0].looks else None,
-            "questions": [{"number": numbers[q.text], "short": q.short, "text": q.text, "summary": q.summary,
+            "questions": [{"number": numbers[q.short], "short": q.short, "text": q.text, "summary": q.summary,
                            "decided": q.decided, "seeds_to_decide": q.seeds_to_decide} for q in questions],
-            "comparisons": [comparison(numbers[q.text], a) for q in questions for a in q.answers],
+            "comparisons": [comparison(numbers[q.short], a) for q in questions for a in q.answers],
             "seeds": {g.method: sorted(g.seeds) for g in groups if g.task == task and pick([g], g.method) is g},
         }
     return record
