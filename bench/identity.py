@@ -25,8 +25,6 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-import numpy as np
-
 from lava_bridge_mj.eval.training import run_files
 from single_seed_speed import commit_tree, importable_tree  # bench/ is on sys.path when this script runs
 
@@ -90,10 +88,7 @@ def compare(a: Path, b: Path) -> dict[str, str]:
             elif kind == "episodes.csv":
                 same = run_files.read_episode_log(fa) == run_files.read_episode_log(fb)
             else:
-                with np.load(fa) as za, np.load(fb) as zb:
-                    same = sorted(za.files) == sorted(zb.files) and all(
-                        za[k].dtype == zb[k].dtype and za[k].shape == zb[k].shape and za[k].tobytes() == zb[k].tobytes()
-                        for k in za.files)
+                same = run_files.same_arrays(run_files.read_npz(fa), run_files.read_npz(fb))
             if not same:
                 problems.append(f"{seed} differs")
         verdict[kind] = "; ".join(problems) if problems else ("identical" if present else "absent")

@@ -133,8 +133,8 @@ def test_npz_bytes_are_reproducible_compressed_and_load_to_the_same_arrays():
     assert payload == npz_bytes(**arrays)  # no timestamp: np.savez_compressed's bytes change by the second
     assert npz_bytes(**weights(1)) != payload
     loaded = read_npz(io.BytesIO(payload))
-    assert compress.same_arrays(loaded, arrays)
-    assert not compress.same_arrays(loaded, {**arrays, "steps": arrays["steps"].astype(np.int32)})
+    assert run_files.same_arrays(loaded, arrays)
+    assert not run_files.same_arrays(loaded, {**arrays, "steps": arrays["steps"].astype(np.int32)})
     repeated = {"steps": np.zeros(3000), "states": np.zeros((150, 4)), "probabilities": np.zeros((20, 150))}
     stored = io.BytesIO()
     np.savez(stored, **repeated)

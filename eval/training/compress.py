@@ -29,12 +29,11 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from lava_bridge_mj.eval.training.atomic import atomic_write
-import numpy as np
-
 from lava_bridge_mj.agents.methods import METHODS
+from lava_bridge_mj.eval.training.atomic import atomic_write
 from lava_bridge_mj.eval.training.run_files import (EPISODE_LOG, PLAIN_EPISODE_LOG, START_WEIGHTS, gzip_bytes,
-                                                    npz_bytes, read_config, read_episode_log, read_npz)
+                                                    npz_bytes, read_config, read_episode_log, read_npz,
+                                                    same_arrays)
 
 
 @dataclass
@@ -93,11 +92,6 @@ def compress_log(plain: Path, done: Compressed) -> None:
             return
     done.logs.add(len(data), target.stat().st_size)
     plain.unlink()
-
-
-def same_arrays(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> bool:
-    return sorted(a) == sorted(b) and all(a[k].dtype == b[k].dtype and a[k].shape == b[k].shape
-                                          and a[k].tobytes() == b[k].tobytes() for k in a)
 
 
 def compress_weights(path: Path, done: Compressed) -> None:

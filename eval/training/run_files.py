@@ -334,6 +334,12 @@ def read_npz(path: Path | io.BytesIO) -> dict[str, np.ndarray]:
         raise ValueError(f"{path} is damaged ({type(error).__name__}: {reason})") from None
 
 
+def same_arrays(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> bool:
+    """Whether two `read_npz` results hold the same arrays: names, dtypes, shapes and bytes."""
+    return sorted(a) == sorted(b) and all(a[k].dtype == b[k].dtype and a[k].shape == b[k].shape
+                                          and a[k].tobytes() == b[k].tobytes() for k in a)
+
+
 def episode_log_text(rows: Sequence[tuple]) -> bytes:
     """The episode log's CSV: the EPISODE_FIELDS header, then one line per row."""
     text = io.StringIO()
