@@ -280,3 +280,23 @@ def test_the_study_keeps_the_logs_its_report_reads_and_the_report_is_the_same_wi
     assert compress.main([str(runs), "--keep-logs-of", kept]) == 0
     assert [run_files.episode_log_file(runs / "auxss-d500" / f"seed{seed}") for seed in (10, 11)] == [None, None]
     assert report("kept_logs") == before
+
+
+def test_the_committed_results_are_stored_compressed_and_the_study_keeps_only_the_logs_its_report_reads():
+    import zipfile
+
+    from lava_bridge_mj.eval.analysis.report import LOG_READ_METHODS
+
+    results = ROOT / "results"
+    assert not sorted(results.rglob(PLAIN_EPISODE_LOG))
+    weights = sorted(results.rglob(START_WEIGHTS))
+    assert len(weights) > 1000
+    for path in weights:  # the trainer's form (npz_bytes): deflated members with the fixed date
+        with zipfile.ZipFile(path) as archive:
+            members = archive.infolist()
+        assert members and all(m.compress_type == zipfile.ZIP_DEFLATED and m.date_time == run_files.NPZ_DATE
+                               for m in members), path
+    logs = sorted((results / "study").rglob(EPISODE_LOG))
+    assert logs
+    methods = {run_files.read_config(log.parent)["method"] for log in logs}
+    assert methods == set(LOG_READ_METHODS)
