@@ -347,6 +347,20 @@ def test_the_screening_rule_waits_for_every_seed_to_reach_a_budget(tmp_path):
     assert "no budget up to 50,000 steps" in doc_tables.screening_table(data)[-1]
 
 
+def test_the_external_study_trains_each_screened_maze_at_the_budget_its_screening_picked():
+    makefile = (ROOT / "Makefile").read_text()
+    target = makefile[makefile.index("\nstudy-external:"):]
+    target = target[:target.index("\n\n")]
+    steps = {}
+    for env, budget in re.findall(r"--envs (\S+) --steps (\d+)", target):
+        steps.setdefault(env, set()).add(int(budget))
+    assert set(steps) == set(doc_tables.SCREENED_TASKS)
+    for task in doc_tables.SCREENED_TASKS:
+        runs = doc_tables.BudgetRuns(doc_tables.EXTERNAL_SCREENING / task, doc_tables.SCREENING_BUDGETS)
+        budget = doc_tables.screening_budget(doc_tables.budget_source(runs)(ROOT))
+        assert steps[task] == {budget}, (task, steps[task], budget)
+
+
 def difficulty_record(histogram, unsafe_x=(-1.714, 1.426)):
     """What `bench/difficulty.py --json` writes for LavaBridge-v0, with hand-picked figures."""
     return {"command": "python bench/difficulty.py --env LavaBridge-v0 --json d.json", "commit": "abc1234",
