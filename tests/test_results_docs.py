@@ -143,7 +143,8 @@ def test_the_readme_and_results_md_hold_the_study_parts_generated_from_the_study
     # test_committed_report_is_regenerated_exactly_from_results ties to the runs in results/study (that the parts
     # equal what answers.json gives is tests/test_doc_tables.py's)
     record = json.loads((ROOT / doc_tables.ANSWERS).read_text())
-    assert set(record) == set(lava_bridge_mj.SUITE)
+    studied = {task.name for task in (ROOT / "results/study").iterdir() if task.is_dir()}
+    assert set(record) == studied >= set(lava_bridge_mj.SUITE)  # every task with study runs, the suite's at least
     readme, results = ((ROOT / document).read_text() for document in ("README.md", "docs/results.md"))
     for name in ("study-answers", "study-in-words"):
         assert f"<!-- generated: {name} -->" in readme
