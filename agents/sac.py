@@ -38,6 +38,17 @@ def bellman_target(reward: torch.Tensor, terminated: torch.Tensor, next_value: t
     return reward + gamma * (1.0 - terminated) * next_value
 
 
+def alpha_loss_gradient(log_prob: torch.Tensor, target_entropy: float) -> torch.Tensor:
+    """d/d log_alpha of the entropy coefficient's loss -mean_b(log_alpha * (log_prob + target_entropy)),
+    one per seed: -mean_b(log_prob + target_entropy), for log-probs (K, B).
+
+    The loss is linear in log_alpha, so its gradient is written out rather than taken by autograd, whose
+    backward pass over this one-op graph costs more than the alpha step's Adam. It is computed as autograd
+    computes it: each term times -1/B, then summed, so the numbers are autograd's bit for bit
+    (tests/test_sac.py compares them)."""
+    return (log_prob + target_entropy).mul(-1.0 / log_prob.shape[1]).sum(1)
+
+
 class SAC(SeedBatchedAgent):
     """K seeds of SAC: actor, twin critics with a target copy, log(alpha), and their Adam optimisers,
     each with a leading axis of length K = len(seeds).
@@ -126,9 +137,7 @@ class SAC(SeedBatchedAgent):
 
         # Alpha: raise it when entropy (-log pi) is below target, lower it when above.
         log_prob = log_prob.detach()
-        alpha_loss = -(self.log_alpha.unsqueeze(1) * (log_prob + self.target_entropy)).mean(1)
-        self.alpha_optimizer.zero_grad(set_to_none=True)
-        alpha_loss.sum().backward()
+        self.log_alpha.grad = alpha_loss_gradient(log_prob, self.target_entropy)
         self.alpha_optimizer.step()
 
         soft_update(self.target_params, self.critic_params, self.config.tau)

@@ -10,7 +10,7 @@ import torch
 
 from lava_bridge_mj.agents.networks import MLP, StackedLinear, TanhGaussianActor, TwinQ, init_member, soft_update
 from lava_bridge_mj.agents.replay_buffer import ReplayBuffer
-from lava_bridge_mj.agents.sac import SAC, SACConfig, bellman_target
+from lava_bridge_mj.agents.sac import SAC, SACConfig, alpha_loss_gradient, bellman_target
 from lava_bridge_mj.agents.seed_batch import stack_batches
 
 SMALL = SACConfig(hidden_sizes=(64, 64), batch_size=64, learning_starts=400)
@@ -149,6 +149,20 @@ def test_target_entropy_decides_which_way_alpha_moves(target_entropy):
     assert -10 < entropy < 10  # a fresh tanh-Gaussian policy: far from +-50
     expected_move = SMALL.lr * float(np.sign(agent.target_entropy - entropy))
     assert agent.log_alpha.item() - before == pytest.approx(expected_move, abs=1e-6)
+
+
+@pytest.mark.parametrize("seeds, batch_size", [(1, 256), (2, 32), (3, 100), (5, 7)])
+def test_alpha_loss_gradient_is_autograds_bit_for_bit(seeds, batch_size):
+    # the update writes the alpha loss's gradient out; it must be the very numbers backward() gives,
+    # batch sizes that are not powers of two (where -1/B rounds) included
+    generator = torch.Generator().manual_seed(seeds * batch_size)
+    log_alpha = torch.randn(seeds, generator=generator).requires_grad_(True)
+    log_prob = torch.randn(seeds, batch_size, generator=generator) * 10 ** torch.empty(seeds, batch_size).uniform_(
+        -3, 2, generator=generator)
+    (-(log_alpha.unsqueeze(1) * (log_prob + -2.0)).mean(1)).sum().backward()
+    written = alpha_loss_gradient(log_prob, -2.0)
+    assert written.shape == (seeds,) and torch.equal(written, log_alpha.grad)
+    torch.testing.assert_close(written, -(log_prob - 2.0).mean(1))  # and it is the gradient
 
 
 # --- networks --------------------------------------------------------------------------------------
