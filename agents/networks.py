@@ -149,6 +149,8 @@ class TanhGaussianActor(nn.Module):
             shape, dtype, device = mean.shape[1:], mean.dtype, mean.device
             if generators is None:
                 noise = torch.randn(mean.shape, dtype=dtype, device=device)
+            elif len(generators) == 1:  # the same draws as the stack below, without its copy
+                noise = torch.randn(mean.shape, generator=generators[0], dtype=dtype, device=device)
             else:
                 noise = torch.stack([torch.randn(shape, generator=g, dtype=dtype, device=device) for g in generators])
             u = mean + log_std.exp() * noise

@@ -161,5 +161,8 @@ def seed_adam(parameters, lr: float) -> torch.optim.Adam:
 
 
 def stack_batches(batches: Sequence[dict[str, torch.Tensor]]) -> dict[str, torch.Tensor]:
-    """One (K, B, ...) batch from K per-seed replay samples."""
+    """One (K, B, ...) batch from K per-seed replay samples; a single seed's sample is viewed with a
+    seed axis, not copied."""
+    if len(batches) == 1:
+        return {name: tensor.unsqueeze(0) for name, tensor in batches[0].items()}
     return {name: torch.stack([b[name] for b in batches]) for name in batches[0]}
