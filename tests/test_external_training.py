@@ -14,7 +14,10 @@ import lava_bridge_mj
 from lava_bridge_mj import EXTERNAL_TASKS, RunConfig, load_demos, make_task_env
 from lava_bridge_mj.agents.rfcl import FORWARD_SEEDS, p0_states
 from lava_bridge_mj.demos import SHIPPED_SEEDS, SHIPPED_SIZES, content_hash, generate_task_demos
+from lava_bridge_mj.agents.sac import SACConfig
 from lava_bridge_mj.eval.cli import main as cli_main
+from lava_bridge_mj.eval.training.evaluate import MAX_EVAL_BYTES, evaluate, members_at_once
+from lava_bridge_mj.eval.training.runner import Run, make_agent
 from lava_bridge_mj.eval.training.run_files import EPISODE_LOG
 from lava_bridge_mj.state_vector import ResetToStateVectorEnv
 
@@ -135,6 +138,28 @@ def test_a_batched_seed_equals_the_seed_alone(medium_runs, tmp_path):
     assert (tmp_path / "alone" / EPISODE_LOG).read_bytes() == (medium_runs / "auxss" / "seed1" / EPISODE_LOG).read_bytes()
     alone, batched = (np.load(d / "start_weights.npz") for d in (tmp_path / "alone", medium_runs / "auxss" / "seed1"))
     np.testing.assert_array_equal(alone["probabilities"], batched["probabilities"])
+
+
+def test_an_evaluation_vector_env_holds_the_members_whose_models_fit(tmp_path):
+    env = make_task_env(MEDIUM)
+    model, data = env.unwrapped.model, env.unwrapped.data
+    assert model.nbuffer > 6 * 800 * 800 * 3  # each maze env's own model: mostly its skybox, 6 RGB faces of 800 x 800
+    assert members_at_once(10, 50, env) == 1  # 50 episodes' models are more than MAX_EVAL_BYTES
+    assert members_at_once(40, 2, env) == MAX_EVAL_BYTES // (2 * (model.nbuffer + data.nbuffer)) < 40
+    assert members_at_once(10, 50) == 10 and members_at_once(40, 50) == 25  # Lava Bridge: 1,250 sub-envs
+    config = RunConfig(env_id=MEDIUM, method="auxss", eval_episodes=30)
+    run = Run([config, RunConfig(env_id=MEDIUM, method="auxss", eval_episodes=30, seed=1)],
+              [tmp_path / "seed0", tmp_path / "seed1"])
+    assert run.eval_envs.num_envs == 30  # one seed's episodes at a time, not both seeds' 60
+
+
+def test_members_evaluated_a_group_at_a_time_run_the_episodes_of_all_at_once():
+    agent = make_agent(RunConfig(env_id=MEDIUM, method="auxss", sac=SACConfig(hidden_sizes=(16, 16))), seeds=[0, 1])
+    one, both = ResetToStateVectorEnv(MEDIUM, 3), ResetToStateVectorEnv(MEDIUM, 6)
+    for start in ("p0", "ood"):
+        assert evaluate(agent, one, start, 3, horizon=40) == evaluate(agent, both, start, 3, horizon=40)
+        # the last group's episodes ended in the same states, bit for bit
+        np.testing.assert_array_equal(one.get_state(), both.get_state()[3:])
 
 
 def test_a_short_run_on_the_cube(tmp_path):

@@ -27,8 +27,12 @@ EVAL_SEED = 1_000_000
 EVAL_STARTS = ("p0", "ood")
 """The start distributions every evaluation round runs: the MDP's own and the robustness benchmark's."""
 MAX_EVAL_ENVS = 1250
-"""Sub-envs of an evaluation vector env (about 450 KiB of MuJoCo data each): a batch whose episodes need
-more is evaluated a group of members at a time, with the same results."""
+"""Sub-envs of a Lava Bridge evaluation vector env (one shared model, about 450 KiB of MuJoCo data
+each): a batch whose episodes need more is evaluated a group of members at a time, with the same results."""
+MAX_EVAL_BYTES = MAX_EVAL_ENVS * 450 * 2**10
+"""The MuJoCo models and data that the sub-envs of another env's evaluation vector env may hold
+together, as much as Lava Bridge's largest: each of its sub-envs is a whole env with its own model
+(a PointMaze's is 11 MiB, mostly its skybox texture; the cube's 60 MiB), so fewer members fit."""
 OWN_CALL_ROWS = 16
 """A member with fewer running episodes than this gets an actor call of exactly its own row count.
 
@@ -38,6 +42,19 @@ kernel that larger ones take; within the BLAS kernel a row's result does not dep
 share the call. So members with at least this many rows (16 rows are over the limit for every layer
 of 7 or more units) share one call padded to the largest count, and a member with fewer is called
 on exactly its own rows, as when it is evaluated alone (tests/test_batched_eval.py checks both)."""
+
+
+def members_at_once(members: int, episodes: int, env: Any = None) -> int:
+    """How many of `members` members an evaluation vector env of `episodes` episodes each runs
+    together (at least one): those that fit in MAX_EVAL_ENVS Lava Bridge sub-envs, or, given `env`
+    (one sub-env of another env, whose `unwrapped` holds its MuJoCo `model` and `data`), in
+    MAX_EVAL_BYTES of those sub-envs' models and data."""
+    if env is None:
+        fits = MAX_EVAL_ENVS // episodes
+    else:
+        unwrapped = env.unwrapped
+        fits = MAX_EVAL_BYTES // (episodes * (unwrapped.model.nbuffer + unwrapped.data.nbuffer))
+    return min(members, max(1, fits))
 
 
 def evaluate(agent: Any, envs: LavaBridgeVectorEnv | ResetToStateVectorEnv, start: str, episodes: int,

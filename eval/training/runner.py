@@ -36,7 +36,7 @@ from lava_bridge_mj.agents.seed_batch import stack_batches
 from lava_bridge_mj.checks import check_integer
 from lava_bridge_mj.eval.arguments import Interrupted, format_seeds, handling_signals, stop_reason
 from lava_bridge_mj.eval.training.config import RunConfig, check_batch_fits
-from lava_bridge_mj.eval.training.evaluate import EVAL_STARTS, MAX_EVAL_ENVS, evaluate
+from lava_bridge_mj.eval.training.evaluate import EVAL_STARTS, evaluate, members_at_once
 from lava_bridge_mj.eval.training.provenance import code_provenance
 from lava_bridge_mj.eval.training.run_files import (CHECKPOINTS, VIDEOS, DamagedFileError, RunDirectoryError,
                                                     append_provenance, check_run_directory, check_strategy_unchanged,
@@ -107,16 +107,16 @@ class Run:
             raise ValueError(f"seeds must be distinct, got {seeds}")
         self.config = configs[0]
         self.method = method = METHODS[self.config.method]
+        probe = self.config.make_env()  # an env of the task for the strategies' own rollouts (Omega-SS)
         # every seed's evaluation episodes in one vector env (a group of seeds at a time if they need
-        # more than MAX_EVAL_ENVS sub-envs); episodes are reset with fixed seeds before every round
+        # more sub-envs than fit: `members_at_once`); episodes are reset with fixed seeds before every round
         episodes = self.config.eval_episodes
-        seeds_at_once = min(len(configs), max(1, MAX_EVAL_ENVS // episodes))
+        seeds_at_once = members_at_once(len(configs), episodes, None if self.config.lava_bridge else probe)
         self.eval_envs = self.config.make_vector_env(seeds_at_once * episodes)
         # the seeds share the config's demo set; the buffer is never written, so one copy serves all
         demos = demo_buffer(self.config) if method.demos != "none" else None
         # one vector env steps every seed's episode: sub-env i is seed i's, seeded with that seed
         self.envs = self.config.make_vector_env(len(configs))
-        probe = self.config.make_env()  # an env of the task for the strategies' own rollouts (Omega-SS)
         self.seed_runs = [SeedRun(c, d, probe=probe, envs=self.envs, index=i, demos=demos)
                           for i, (c, d) in enumerate(zip(configs, out_dirs))]
         self._start_episodes(np.ones(len(configs), dtype=bool), seeds=seeds)
