@@ -20,6 +20,7 @@ BENCH = Path(__file__).resolve().parent.parent / "bench"
     (["update_speed.py", "--quick"], "ref / this tree"),
     (["update_speed.py", "--quick", "--compiled"], "ref: this tree, torch.compile"),
     (["tracking_cost.py", "--quick"], "time in the logging calls"),
+    (["memory.py", "--quick", "--ref", "HEAD"], "| LavaBridge-v0 | 1 | 50 |"),
 ])  # difficulty.py runs and prints its figures in test_difficulty_writes_a_table_row_per_task_with_its_command
 def test_bench_script_runs_and_prints_figures(argv, expected):
     result = subprocess.run([sys.executable, str(BENCH / argv[0]), *argv[1:]], capture_output=True, text=True,
