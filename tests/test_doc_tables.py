@@ -427,6 +427,10 @@ def test_the_single_seed_sentence_gives_each_report_of_the_file():
     assert doc_tables.single_seed_speed(SINGLE_SEED + SINGLE_SEED.replace("0.83", "0.99"))[0].endswith(
         "this tree was slower; run again, it gave **0.99** (this tree 110.7 steps/s, 5eff605 134.0; medians of 3 runs "
         "of 5,000 steps each, single runs 102.7-123.3 and 124.2-155.7 steps/s): this tree was slower.")
+    overlapping = SINGLE_SEED.replace("110.7, 102.7, 123.3", "110.7, 102.7, 124.2")  # one run ties the ref's slowest
+    assert doc_tables.single_seed_speed(overlapping)[0].endswith(
+        "single runs 102.7-124.2 and 124.2-155.7 steps/s): this tree's median was lower, within the overlap of the "
+        "two trees' single runs.")
     with pytest.raises(doc_tables.SourceError, match="single_seed_speed.txt holds no report"):
         doc_tables.single_seed_speed("ratio this tree / 5eff605: 1.09\n")
 
