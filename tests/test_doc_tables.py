@@ -510,3 +510,35 @@ def test_the_external_throughput_table_prices_ten_seeds_at_300k_steps_per_task(t
         stale.unlink()
     with pytest.raises(doc_tables.SourceError, match="no results/bench/external_throughput"):
         doc_tables.external_throughput_source(tmp_path)
+
+
+MEMORY = """# Peak memory of a tiny auxss run per task
+
+$ python bench/memory.py --ref abc1234 --tasks Maze-v3
+code: 0123456789abcdef; ref: abc1234ffff
+machine: x86_64, 2 CPUs, python 3.11.7; one-minute load average 1.50 as it began
+runs: --method auxss --steps 300 --eval-every 300 --threads 1, 50 eval episodes from p0 and ood
+
+| task | K | eval sub-envs | peak RSS (MiB) | wall s | ref peak RSS (MiB) | ref wall s | metrics.csv |
+|---|---:|---:|---:|---:|---:|---:|---|
+| Maze-v3 | 10 | 50 | 1,110 | 190 | 6,320 | 246 | identical |
+"""
+
+
+def test_the_memory_table_joins_each_file_and_names_its_command_code_and_load(tmp_path):
+    (tmp_path / doc_tables.BENCH).mkdir(parents=True)
+    with pytest.raises(doc_tables.SourceError, match="run `python bench/memory.py`"):
+        doc_tables.memory_source(tmp_path)
+    alone = ("$ python bench/memory.py --tasks Cube-v0 --seeds 1\ncode: fedcba987 (with uncommitted changes)\n"
+             "machine: x86_64; one-minute load average 7.82 as it began\n"
+             "| task | K | eval sub-envs | peak RSS (MiB) | wall s |\n|---|---:|---:|---:|---:|\n| Cube-v0 | 1 | 50 | 8,796 | 213 |\n")
+    (tmp_path / doc_tables.BENCH / "memory_cube.txt").write_text(alone)
+    (tmp_path / doc_tables.BENCH / "memory.txt").write_text(MEMORY)
+    lines = doc_tables.memory_table(doc_tables.memory_source(tmp_path))
+    assert lines[2:4] == ["| Maze-v3 | 10 | 50 | 1,110 | 6,320 | identical |", "| Cube-v0 | 1 | 50 | 8,796 | - | - |"]
+    assert lines[-1] == (
+        "Made by `python bench/memory.py --ref abc1234 --tasks Maze-v3` (code 0123456 against abc1234; one-minute "
+        "load average 1.50 as it began); `python bench/memory.py --tasks Cube-v0 --seeds 1` (code fedcba9 (with "
+        "uncommitted changes); one-minute load average 7.82 as it began).")
+    with pytest.raises(doc_tables.SourceError, match="memory.txt holds no line"):
+        doc_tables.memory_table({"memory.txt": MEMORY.split("| task")[0]})

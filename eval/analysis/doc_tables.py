@@ -440,6 +440,35 @@ def external_throughput(texts: dict[str, str]) -> list[str]:
     return lines + ["", "Made by " + "; ".join(notes) + "."]
 
 
+def memory_source(root: Path) -> dict[str, str]:
+    """bench/memory.py's outputs: memory.txt (the comparison with a reference) first, then memory_*.txt."""
+    files = sorted((root / BENCH).glob("memory*.txt"), key=lambda f: (f.stem != "memory", f.name))
+    if not files:
+        raise SourceError(f"no {BENCH}/memory*.txt: run `python bench/memory.py`")
+    return {f.name: f.read_text() for f in files}
+
+
+def memory_table(texts: dict[str, str]) -> list[str]:
+    """bench/memory.py: every task and seed count's peak resident set size (and the reference code's, where the
+    run compared), in one table; then each run's command, the code it measured and the load."""
+    lines = ["| task | K | evaluation sub-envs at once | peak RSS (MiB) | reference code's peak RSS (MiB) | "
+             "metrics.csv against the reference |", "|---|---:|---:|---:|---:|---|"]
+    notes = []
+    for name, text in texts.items():
+        for row in _matches(r"^\| (\S+-v\d+ \|.*)\|$", text, name):
+            cells = [cell.strip() for cell in row.split("|")]
+            task, k, envs, rss = cells[:4]
+            ref_rss, same = (cells[5], cells[7]) if len(cells) == 8 else ("-", "-")
+            lines.append(f"| {task} | {k} | {envs} | {rss} | {ref_rss} | {same} |")
+        [command] = _matches(r"^\$ (python bench/memory\.py.*)$", text, name)
+        [(code, dirty, ref)] = _matches(r"^code: ([0-9a-f]{7})[0-9a-f]*( \(with uncommitted changes\))?"
+                                        r"(?:; ref: ([0-9a-f]{7}))?", text, name)
+        [load] = _matches(r"one-minute load average ([\d.]+) as it began$", text, name)
+        measured = f"code {code}{dirty}" + (f" against {ref}" if ref else "")
+        notes.append(f"`{command}` ({measured}; one-minute load average {load} as it began)")
+    return lines + ["", "Made by " + "; ".join(notes) + "."]
+
+
 WAIT_POLICIES = {"PASSIVE (CLI default)": "`PASSIVE` (what the CLI sets)",
                  "libgomp default": "libgomp's default (before)"}
 
@@ -780,6 +809,7 @@ PARTS: dict[str, Part] = {
     "speed-vector-env": Part(bench_text("env_throughput.txt"), vector_table),
     "external-tasks": Part(bench_text("external_tasks.txt"), external_tasks),
     "external-throughput": Part(external_throughput_source, external_throughput),
+    "external-memory": Part(memory_source, memory_table),
     "speed-threads": Part(bench_text("threads_under_load.txt"), threads_table),
     "speed-single-seed": Part(bench_text("single_seed_speed.txt"), single_seed_speed),
     "tracking-cost": Part(bench_text("tracking_cost.txt"), tracking_cost),
