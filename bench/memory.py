@@ -27,7 +27,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from identity import LAUNCH, git, metrics_without_wall_time  # bench/ is on sys.path when this script runs
+from difficulty import code_version, write_atomically  # bench/ is on sys.path when this script runs
+from identity import LAUNCH, git, metrics_without_wall_time
 from single_seed_speed import commit_tree, importable_tree
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -75,12 +76,19 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     if args.quick:
         args.tasks, args.seeds, args.steps, args.out = ["LavaBridge-v0"], [1], 20, None
-    head = git("rev-parse", "HEAD")
-    dirty = bool(git("status", "--porcelain", "--untracked-files=no"))
+    if min(args.seeds) < 1 or args.steps < 1:
+        parser.error(f"--seeds {args.seeds} and --steps {args.steps} must be positive")
+    scratch_dir = tempfile.TemporaryDirectory(prefix="memory-")
+    scratch = Path(scratch_dir.name)
+    trees = {"working": importable_tree(ROOT, scratch / "path-working")}
+    if args.ref:
+        try:
+            trees["ref"] = commit_tree(args.ref, scratch)
+        except ValueError as error:
+            parser.error(f"--ref: {error}")
     lines = ["# Peak memory of a tiny auxss run per task", "",
              f"$ python bench/memory.py {shlex.join(argv if argv is not None else sys.argv[1:])}",
-             f"code: {head}{' (with uncommitted changes)' if dirty else ''}"
-             + (f"; ref: {git('rev-parse', args.ref)}" if args.ref else ""),
+             f"code: {code_version()}" + (f"; ref: {git('rev-parse', args.ref)}" if args.ref else ""),
              f"machine: {platform.machine()}, {os.cpu_count()} CPUs, python {platform.python_version()}; "
              f"one-minute load average {os.getloadavg()[0]:.2f} as it began",
              f"runs: --method auxss --steps {args.steps} --eval-every {args.steps} --threads 1, 50 eval episodes "
@@ -89,11 +97,7 @@ def main(argv: list[str] | None = None) -> None:
     lines += [header + (" ref peak RSS (MiB) | ref wall s | metrics.csv |" if args.ref else ""),
               "|---|---:|---:|---:|---:|" + ("---:|---:|---|" if args.ref else "")]
     print("\n".join(lines), flush=True)
-    with tempfile.TemporaryDirectory(prefix="memory-") as scratch:
-        scratch = Path(scratch)
-        trees = {"working": importable_tree(ROOT, scratch / "path-working")}
-        if args.ref:
-            trees["ref"] = commit_tree(args.ref, scratch)
+    with scratch_dir:
         for env_id in args.tasks:
             for seeds in args.seeds:
                 peaks, seconds, outs = {}, {}, {}
@@ -108,8 +112,7 @@ def main(argv: list[str] | None = None) -> None:
                 lines.append(row)
                 print(row, flush=True)
     if args.out is not None:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text("\n".join(lines) + "\n")
+        write_atomically(args.out, "\n".join(lines) + "\n")  # a failed or interrupted run leaves the old file
         print(f"wrote {args.out}")
 
 
