@@ -10,7 +10,7 @@ MKDOCS := NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs
 MESA_PACKAGES := libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 libosmesa6
 export MUJOCO_GL ?= egl
 
-.PHONY: run main-budget external-screening expert-video task-pictures test docs bench study study-extension study-rfcl study-external report compress-results setup gl browser clean
+.PHONY: run main-budget external-screening expert-video task-pictures test docs bench study study-extension study-rfcl study-rfcl-extension study-external report compress-results setup gl browser clean
 
 # The main job: what the package is for, AuxSS against SAC from p0 on the same 5 seeds (80,000 steps, as
 # one sweep of two 5-seed jobs, one per core; 17 min on the idle 2-core machine, set-up included), then the report
@@ -141,6 +141,16 @@ study-rfcl: setup
 	    --steps 100000 --out runs/study
 	$(STUDY_SWEEP) --methods $(STUDY_RFCL) --envs LavaBridge-v0 --steps 100000 --out runs/study/LavaBridge-v0
 	$(STUDY_SWEEP) --methods $(STUDY_RFCL) --envs LavaBridgeTwoCrossings-v0 --steps 300000 --out runs/study
+	$(BIN)/lava-bridge-bench export runs/study results/study
+	$(STUDY_KEEP_LOGS)
+
+# RFCL's seed extension, the study's extension rule applied to its second question against rfcl: where that
+# comparison is open at the first look (undecided, or decided at 0.05 only), rfcl trains seeds 20-48 (AuxSS,
+# which the first question compares on every task, already has them). Only tasks whose rfcl runs are in
+# results/study are named; a test names the others once their runs are in. Export a task's extension once
+# all its seeds have finished: every group of results/study holds the seeds of one look (tested).
+study-rfcl-extension: setup
+	$(STUDY_EXTENSION) --methods rfcl --envs LavaBridgeDecoy-v0,LavaBridgeFarStart-v0 --steps 100000 --out runs/study
 	$(BIN)/lava-bridge-bench export runs/study results/study
 	$(STUDY_KEEP_LOGS)
 

@@ -87,7 +87,7 @@ def test_a_folder_of_a_lava_bridge_task_and_an_external_task_reports_both(tmp_pa
     overview = text.split("## The study's answers, task by task")[1].split(f"\n## {LAVA_BRIDGE_TASK}\n")[0]
     for task in (LAVA_BRIDGE_TASK, TASK):
         assert f"| {task} | 1. safety-derived against undirected |" in overview
-        assert f"| {task} | 2. AuxSS against the reverse curriculum |" in overview
+        assert f"| {task} | 2. AuxSS against RFCL |" in overview
     # the maze figure for the Lava Bridge task only
     assert (tmp_path / "report" / f"{LAVA_BRIDGE_TASK}_maze.png").is_file()
     assert not (tmp_path / "report" / f"{TASK}_maze.png").exists()
@@ -100,7 +100,7 @@ def test_a_folder_of_a_lava_bridge_task_and_an_external_task_reports_both(tmp_pa
     # the README's and docs/results.md's tables from that answers.json: both tasks, RFCL's seeds beside reverse_ss's
     table = doc_tables.answer_table(record)
     assert [line.split(" | ")[0] for line in table[2:]] == [f"| {LAVA_BRIDGE_TASK}"] * 2 + [f"| {TASK}"] * 2
-    assert f"| {TASK} | 2. AuxSS against the reverse curriculum | 2 auxss ahead | auxss ahead of rfcl: " \
+    assert f"| {TASK} | 2. AuxSS against RFCL | 2 auxss ahead | auxss ahead of rfcl: " \
            f"learns faster, more robust | - |" in table
     seeds = doc_tables.seeds_table(record)
     assert seeds[0] == "| task | auxss | uniform_ss | omega_ss | goaldist_ss | reverse_ss | rfcl |"

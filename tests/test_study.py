@@ -134,10 +134,10 @@ def test_the_overview_names_each_tasks_decisions_and_the_questions_not_run(tmp_p
     assert rows == [
         "| LavaBridgeDecoy-v0 | 1. safety-derived against undirected | 6 not run, 2 auxss ahead | "
         "auxss ahead of uniform_ss: learns faster, more robust | - |",
-        "| LavaBridgeDecoy-v0 | 2. AuxSS against the reverse curriculum | not run | - | - |",
+        "| LavaBridgeDecoy-v0 | 2. AuxSS against RFCL | not run | - | - |",
         # the narrow maze's auxss fails against nothing: its first question's pairs need U-SS or GoalDist-SS
         "| LavaBridgeNarrow-v0 | 1. safety-derived against undirected | not run | - | - |",
-        "| LavaBridgeNarrow-v0 | 2. AuxSS against the reverse curriculum | 2 reverse_ss ahead | "
+        "| LavaBridgeNarrow-v0 | 2. AuxSS against RFCL | 2 reverse_ss ahead | "
         "reverse_ss ahead of auxss: learns faster, more robust | - |",
     ]
     assert study_overview({"LavaBridge-v0": []}) == []

@@ -63,7 +63,7 @@ QUESTIONS = (
     ("safety-derived against undirected",
      "Does a safety-derived start distribution (AuxSS, Omega-SS) beat uniform and goal-distance starts "
      "(U-SS, GoalDist-SS)?", tuple((a, b) for a in SAFETY for b in UNDIRECTED)),
-    ("AuxSS against the reverse curriculum", "AuxSS or {rfcl}?", (("auxss", ("rfcl", "reverse_ss")),)),
+    ("AuxSS against RFCL", "AuxSS or {rfcl}?", (("auxss", ("rfcl", "reverse_ss")),)),
 )
 """Each question's short name, its text and the (A, B) pairs that answer it, A the side the question
 asks about. A side given as a tuple of methods is the first of them that has a group on the task (the

@@ -23,7 +23,8 @@ import scipy.stats
 
 THRESHOLD, ROBUST, MARGIN, ALPHA = 0.8, 0.5, 0.3, 0.05
 QUESTIONS = {1: [(a, b) for a in ("auxss", "omega_ss") for b in ("uniform_ss", "goaldist_ss")],
-             2: [("auxss", "reverse_ss")]}
+             2: [("auxss", "rfcl")]}
+STAND_IN = {"rfcl": "reverse_ss"}  # a task without runs of RFCL as published reads its reverse curriculum
 
 
 def read_group(folder: Path, seeds: set[int]) -> dict[int, list[dict[str, float]]]:
@@ -181,6 +182,7 @@ def two_look_level(first: int, second: int) -> float:
 def answer(groups: dict, level: float) -> dict[int, list[dict]]:
     answers = {}
     for number, pairs in QUESTIONS.items():
+        pairs = [(a, b if b in groups else STAND_IN.get(b, b)) for a, b in pairs]
         if not any(a in groups and b in groups for a, b in pairs):
             continue
         made = []
