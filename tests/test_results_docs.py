@@ -182,6 +182,11 @@ def extension_groups():
             for method in sweep["--methods"].split(",")]
 
 
+def study_budgets():
+    """Task -> the --steps `make study` trains it to."""
+    return {task: sweep["--steps"] for sweep in makefile_sweeps("study") for task in sweep["--envs"].split(",")}
+
+
 def study_looks():
     """The seeds per group of the study's two looks, as the study report's --looks gives them."""
     first, second = map(int, STUDY_REPORT[STUDY_REPORT.index("--looks") + 1].split(","))
@@ -216,7 +221,7 @@ def test_the_seed_extension_trains_exactly_the_groups_the_first_look_leaves_unde
     still_open = [(task, answer) for (task, _), found in first_look(without=RFCL_METHODS).items() for answer in found
                   if answer.verdict == UNDECIDED or answer.at_one_look_only]
     open_groups = {(task, method) for task, answer in still_open for method in (answer.a, answer.b)}
-    study_steps = {task: sweep["--steps"] for sweep in makefile_sweeps("study") for task in sweep["--envs"].split(",")}
+    study_steps = study_budgets()
     cells = extension_groups()
     assert len(cells) == len(set(cells)) and set(cells) == open_groups
     study_first, study_last = study_seed_range()
@@ -246,7 +251,7 @@ def test_rfcl_extension_trains_rfcl_where_the_second_question_against_it_is_open
     assert len(cells) == len(set(cells)) and set(cells) == open_rfcl
     options = {key: value for key, value in makefile_sweeps("study-extension")[0].items()
                if key not in ("--methods", "--envs", "--steps", "--out")}
-    study_steps = {task: sweep["--steps"] for sweep in makefile_sweeps("study") for task in sweep["--envs"].split(",")}
+    study_steps = study_budgets()
     for sweep in sweeps:
         assert {key: value for key, value in sweep.items() if key in options} == options
         assert sweep["--seeds"] == f"{study_last + 1}-{study_first + second_look - 1}"
