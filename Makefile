@@ -150,7 +150,8 @@ study-rfcl: setup
 # results/study are named; a test names the others once their runs are in. Export a task's extension once
 # all its seeds have finished: every group of results/study holds the seeds of one look (tested).
 study-rfcl-extension: setup
-	$(STUDY_EXTENSION) --methods rfcl --envs LavaBridgeDecoy-v0,LavaBridgeFarStart-v0 --steps 100000 --out runs/study
+	$(STUDY_EXTENSION) --methods rfcl --envs LavaBridgeDecoy-v0,LavaBridgeFarStart-v0,LavaBridgeNarrow-v0 \
+	    --steps 100000 --out runs/study
 	$(BIN)/lava-bridge-bench export runs/study results/study
 	$(STUDY_KEEP_LOGS)
 
