@@ -176,15 +176,25 @@ def study_seed_range():
     return int(first), int(last)
 
 
+EXTENSIONS = ("study-extension", "study-external-extension")
+"""The seed extensions of `make study` (the suite) and of `make study-external` (the external tasks)."""
+
+
+def extension_sweeps():
+    """The sweep lines of both seed extensions."""
+    return [sweep for target in EXTENSIONS for sweep in makefile_sweeps(target)]
+
+
 def extension_groups():
-    """(task, method) of each group `make study-extension` trains, once per sweep line that names it."""
-    return [(task, method) for sweep in makefile_sweeps("study-extension") for task in sweep["--envs"].split(",")
+    """(task, method) of each group the two seed extensions train, once per sweep line that names it."""
+    return [(task, method) for sweep in extension_sweeps() for task in sweep["--envs"].split(",")
             for method in sweep["--methods"].split(",")]
 
 
 def study_budgets():
-    """Task -> the --steps `make study` trains it to."""
-    return {task: sweep["--steps"] for sweep in makefile_sweeps("study") for task in sweep["--envs"].split(",")}
+    """Task -> the --steps `make study` or `make study-external` trains it to."""
+    return {task: sweep["--steps"] for target in ("study", "study-external") for sweep in makefile_sweeps(target)
+            for task in sweep["--envs"].split(",")}
 
 
 def study_looks():
@@ -216,9 +226,13 @@ def test_the_seed_extension_trains_exactly_the_groups_the_first_look_leaves_unde
     # to the second look; groups whose every comparison is decided (or that no question compares) stay at the
     # study's seeds. (The second look's 49 seeds were what Fisher's power alone asked for; the equivalence
     # rule asks more of an undecided comparison, and the answer table says how many seeds each would need.)
-    # The extension was decided on the study's own groups, before RFCL as published had runs.
+    # The suite's extension was decided on the study's own groups, before RFCL as published had runs; the
+    # external tasks' extension on all of their groups, rfcl among them.
     first_look_seeds, second_look = study_looks()
-    still_open = [(task, answer) for (task, _), found in first_look(without=RFCL_METHODS).items() for answer in found
+    answers = {**{key: found for key, found in first_look(without=RFCL_METHODS).items()
+                  if key[0] in lava_bridge_mj.SUITE},
+               **{key: found for key, found in first_look().items() if key[0] not in lava_bridge_mj.SUITE}}
+    still_open = [(task, answer) for (task, _), found in answers.items() for answer in found
                   if answer.verdict == UNDECIDED or answer.at_one_look_only]
     open_groups = {(task, method) for task, answer in still_open for method in (answer.a, answer.b)}
     study_steps = study_budgets()
@@ -228,18 +242,19 @@ def test_the_seed_extension_trains_exactly_the_groups_the_first_look_leaves_unde
     options = {key: value for key, value in makefile_sweeps("study")[0].items()
                if key not in ("--methods", "--envs", "--steps", "--out", "--seeds")}
     assert first_look_seeds == study_last - study_first + 1 < second_look
-    for sweep in makefile_sweeps("study-extension"):
+    for sweep in extension_sweeps():
         assert sweep["--seeds"] == f"{study_last + 1}-{study_first + second_look - 1}"
         assert all(sweep["--steps"] == study_steps[task] for task in sweep["--envs"].split(","))
         assert {key: value for key, value in sweep.items() if key in options} == options
 
 
 def test_rfcl_extension_trains_rfcl_where_the_second_question_against_it_is_open_at_the_first_look():
-    # the same rule for the comparisons against rfcl, on the tasks whose rfcl runs are in results/study: rfcl
-    # trains the second look's seeds where AuxSS against it is undecided or decided at 0.05 only
+    # the same rule for the comparisons against rfcl, on the suite's tasks whose rfcl runs are in results/study:
+    # rfcl trains the second look's seeds where AuxSS against it is undecided or decided at 0.05 only (the
+    # external tasks trained rfcl with their other groups, so their own extension covers it)
     _, second_look = study_looks()
     study_first, study_last = study_seed_range()
-    answers = first_look()
+    answers = {key: found for key, found in first_look().items() if key[0] in lava_bridge_mj.SUITE}
     with_rfcl = {task for (task, _), found in answers.items() for answer in found if answer.b == "rfcl"}
     open_rfcl = {(task, "rfcl") for (task, _), found in answers.items() for answer in found
                  if answer.b == "rfcl" and (answer.verdict == UNDECIDED or answer.at_one_look_only)}
