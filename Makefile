@@ -152,6 +152,7 @@ study-rfcl: setup
 study-rfcl-extension: setup
 	$(STUDY_EXTENSION) --methods rfcl --envs LavaBridgeDecoy-v0,LavaBridgeFarStart-v0,LavaBridgeNarrow-v0 \
 	    --steps 100000 --out runs/study
+	$(STUDY_EXTENSION) --methods rfcl --envs LavaBridge-v0 --steps 100000 --out runs/study/LavaBridge-v0
 	$(BIN)/lava-bridge-bench export runs/study results/study
 	$(STUDY_KEEP_LOGS)
 
