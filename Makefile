@@ -184,8 +184,8 @@ study-external-extension: setup
 # every method at the 100k protocol budget, AuxSS, SAC and Omega-SS at the paper's 300k, the AuxSS ablations,
 # the start-strategy calibration on the tuning seeds (docs/calibration.md), and the task suite's screening
 # (at 100k, and the two crossings extended to the paper's 300k), and the study's finished runs (make study;
-# each task at the budget it was trained to, so no --budget), and the far start's reverse curriculum with and
-# without its shortened time limit beside AuxSS (results/study_ablations). Then the generated parts of the docs and
+# each task at the budget it was trained to, so no --budget), the far start's reverse curriculum and the medium
+# maze's rfcl, each with and without its shortened time limit beside AuxSS (results/study_ablations). Then the generated parts of the docs and
 # results/INDEX.md are rewritten from the committed data (eval/analysis/doc_tables.py).
 report: setup
 	$(BIN)/lava-bridge-bench report results/protocol --budget 100000 --out docs/report
@@ -207,6 +207,9 @@ report: setup
 	$(BIN)/lava-bridge-bench report results/study/LavaBridgeFarStart-v0/auxss-d500 \
 	    results/study/LavaBridgeFarStart-v0/reverse_ss-d500 results/study_ablations/LavaBridgeFarStart-v0 \
 	    --seeds $(STUDY_SEEDS) --all-pairs --out docs/report_reverse_limit
+	$(BIN)/lava-bridge-bench report results/study/PointMaze_Medium-v3/auxss-d500 \
+	    results/study/PointMaze_Medium-v3/rfcl-d500 results/study_ablations/PointMaze_Medium-v3 \
+	    --seeds $(STUDY_SEEDS) --all-pairs --out docs/report_rfcl_limit
 	$(BIN)/python -m lava_bridge_mj.eval.analysis.doc_tables
 
 # The plain episode logs (episodes.csv) under COMPRESS_DIRS rewritten in place as episodes.csv.gz, and the

@@ -5,6 +5,7 @@ a hand-edited table fails here. The commands are read from the Makefile, the one
 import importlib.util
 import json
 import re
+import shlex
 from pathlib import Path
 
 import pytest
@@ -36,7 +37,22 @@ def test_the_report_target_makes_every_committed_report():
     assert [argv[argv.index("--out") + 1] for argv in COMMANDS] == [
         "docs/report", "docs/report_300k", "docs/report_ablations", "docs/report_calibration",
         "docs/report_calibration_confirm", "docs/report_screening", "docs/report_screening_300k", "docs/report_study",
-        "docs/report_reverse_limit"]
+        "docs/report_reverse_limit", "docs/report_rfcl_limit"]
+
+
+def test_results_md_names_each_report_by_the_command_that_makes_it():
+    # the table of reports atop docs/results.md: each command it spells out is the Makefile's, flag for flag,
+    # and every report the Makefile makes has a row
+    table = (ROOT / "docs/results.md").read_text().split("## How a verdict is read")[0]
+    rows = re.findall(r"^\| \[docs/(report\w*)/report\.md\].*\| (`lava-bridge-bench report [^`]+`|see the Makefile) \|$",
+                      table, re.MULTILINE)
+    named = {f"docs/{name}" for name in re.findall(r"\[docs/(report\w*)/report\.md\]", table)}
+    made = {argv[argv.index("--out") + 1]: argv for argv in COMMANDS}
+    assert named == set(made)
+    spelled = [(f"docs/{name}", command) for name, command in rows if command != "see the Makefile"]
+    assert len(spelled) >= 4
+    for out, command in spelled:
+        assert shlex.split(command.strip("`"))[2:] == made[out], f"docs/results.md's command for {out} is not the Makefile's"
 
 
 @pytest.mark.parametrize("argv", COMMANDS, ids=[argv[argv.index("--out") + 1] for argv in COMMANDS])
@@ -312,6 +328,57 @@ def test_results_md_on_the_reverse_curriculums_time_limit_quotes_its_report():
     quoted = section((ROOT / "docs/results.md").read_text(),
                      "## The reverse curriculum without its shortened time limit, on the far start")
     assert_quoted_from(quoted, report, "docs/results.md on the reverse curriculum's time limit")
+
+
+def test_results_md_on_where_rfcl_stalls_on_the_medium_maze_reads_its_start_weights():
+    # the section's account of the stall is read from the study's committed rfcl runs on the maze: from which
+    # evaluation every seed's starts stop moving, which demo states they are, how many expert steps those are
+    # before the goal and the time limit RFCL gives an episode from them
+    import numpy as np
+
+    from lava_bridge_mj.agents.rfcl import RFCLReverseSS
+    from lava_bridge_mj.agents.reverse_curriculum import goal_reaching_demos
+
+    task = "PointMaze_Medium-v3"
+    demo_states, ids = goal_reaching_demos(lava_bridge_mj.load_demos(500, env_id=task), "states")
+    curriculum = RFCLReverseSS(demo_states, ids)
+    frozen_from, starts = [], set()
+    runs = sorted((ROOT / "results/study" / task / "rfcl-d500").glob("seed*"))
+    assert len(runs) == 20
+    for run in runs:
+        with np.load(run / "start_weights.npz") as weights:
+            steps, states, probabilities = weights["steps"], weights["states"], weights["probabilities"]
+        assert np.array_equal(states[:len(demo_states)], demo_states)  # the demo episodes come first
+        drawn = [frozenset(np.flatnonzero(row > 0).tolist()) for row in probabilities]
+        moved = [i for i in range(1, len(drawn)) if drawn[i] != drawn[i - 1]]
+        frozen_from.append(int(steps[moved[-1]] if moved else steps[0]))
+        starts |= drawn[-1]
+    first, last = min(starts), max(starts)
+    back = sorted(curriculum.steps_back(i) for i in (first, last))
+    limits = sorted(curriculum.time_limit(i) for i in (first, last))
+    # with the limit off (results/study_ablations), the seeds whose reverse stage handed over: the first
+    # evaluation whose start weights hold no demo state
+    handed_over = []
+    for run in sorted((ROOT / "results/study_ablations" / task / "rfcl-no_limit-d500").glob("seed*")):
+        with np.load(run / "start_weights.npz") as weights:
+            on_demos = weights["probabilities"][:, :len(demo_states)].sum(axis=1)
+            if (on_demos == 0).any():
+                handed_over.append(int(weights["steps"][np.argmax(on_demos == 0)]))
+    quoted = " ".join(section((ROOT / "docs/results.md").read_text(),
+                              "## RFCL without its shortened time limit, on the medium maze").split())
+    assert len(np.unique(ids)) == 1 and starts == set(range(first, last + 1))
+    for fact in (f"from {max(frozen_from):,} steps on", f"{len(demo_states)} states", f"states {first}-{last}",
+                 f"{back[0]} to {back[1]} of the expert's steps", f"{limits[0]} to {limits[1]} steps",
+                 f"on {len(handed_over)} of 20 seeds, from {min(handed_over):,} to {max(handed_over):,} steps"):
+        assert fact in quoted, f"docs/results.md on where rfcl stalls should say {fact!r}, as its runs do"
+
+
+def test_results_md_on_rfcls_time_limit_quotes_its_report():
+    # the same for rfcl on the medium maze: every count and decimal is in docs/report_rfcl_limit
+    report = (ROOT / "docs/report_rfcl_limit/report.md").read_text()
+    quoted = section((ROOT / "docs/results.md").read_text(),
+                     "## RFCL without its shortened time limit, on the medium maze")
+    assert_quoted_from(quoted, report, "docs/results.md on rfcl's time limit")
 
 
 def test_a_script_outside_the_package_reproduces_every_verdict_the_docs_state():
