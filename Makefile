@@ -185,8 +185,8 @@ study-external-extension: setup
 # the start-strategy calibration on the tuning seeds (docs/calibration.md), and the task suite's screening
 # (at 100k, and the two crossings extended to the paper's 300k), and the study's finished runs (make study;
 # each task at the budget it was trained to, so no --budget), the far start's reverse curriculum and the medium
-# maze's rfcl, each with and without its shortened time limit beside AuxSS (results/study_ablations). Then the generated parts of the docs and
-# results/INDEX.md are rewritten from the committed data (eval/analysis/doc_tables.py).
+# maze's rfcl, each with and without its shortened time limit beside AuxSS (results/study_ablations). Then the
+# generated parts of the docs and results/INDEX.md are rewritten from the committed data (eval/analysis/doc_tables.py).
 report: setup
 	$(BIN)/lava-bridge-bench report results/protocol --budget 100000 --out docs/report
 	$(BIN)/lava-bridge-bench report results/protocol/auxss-d500 results/protocol/sac-d500 results/protocol/omega_ss-d500 \

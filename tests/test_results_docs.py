@@ -338,6 +338,7 @@ def test_results_md_on_where_rfcl_stalls_on_the_medium_maze_reads_its_start_weig
 
     from lava_bridge_mj.agents.rfcl import RFCLReverseSS
     from lava_bridge_mj.agents.reverse_curriculum import goal_reaching_demos
+    from lava_bridge_mj.eval.analysis.summary import read_start_weights
 
     task = "PointMaze_Medium-v3"
     demo_states, ids = goal_reaching_demos(lava_bridge_mj.load_demos(500, env_id=task), "states")
@@ -346,8 +347,7 @@ def test_results_md_on_where_rfcl_stalls_on_the_medium_maze_reads_its_start_weig
     runs = sorted((ROOT / "results/study" / task / "rfcl-d500").glob("seed*"))
     assert len(runs) == 20
     for run in runs:
-        with np.load(run / "start_weights.npz") as weights:
-            steps, states, probabilities = weights["steps"], weights["states"], weights["probabilities"]
+        steps, states, probabilities = read_start_weights(run / "start_weights.npz")
         assert np.array_equal(states[:len(demo_states)], demo_states)  # the demo episodes come first
         drawn = [frozenset(np.flatnonzero(row > 0).tolist()) for row in probabilities]
         moved = [i for i in range(1, len(drawn)) if drawn[i] != drawn[i - 1]]
@@ -360,10 +360,10 @@ def test_results_md_on_where_rfcl_stalls_on_the_medium_maze_reads_its_start_weig
     # evaluation whose start weights hold no demo state
     handed_over = []
     for run in sorted((ROOT / "results/study_ablations" / task / "rfcl-no_limit-d500").glob("seed*")):
-        with np.load(run / "start_weights.npz") as weights:
-            on_demos = weights["probabilities"][:, :len(demo_states)].sum(axis=1)
-            if (on_demos == 0).any():
-                handed_over.append(int(weights["steps"][np.argmax(on_demos == 0)]))
+        steps, _, probabilities = read_start_weights(run / "start_weights.npz")
+        on_demos = probabilities[:, :len(demo_states)].sum(axis=1)
+        if (on_demos == 0).any():
+            handed_over.append(int(steps[np.argmax(on_demos == 0)]))
     quoted = " ".join(section((ROOT / "docs/results.md").read_text(),
                               "## RFCL without its shortened time limit, on the medium maze").split())
     assert len(np.unique(ids)) == 1 and starts == set(range(first, last + 1))
