@@ -153,6 +153,7 @@ study-rfcl-extension: setup
 	$(STUDY_EXTENSION) --methods rfcl --envs LavaBridgeDecoy-v0,LavaBridgeFarStart-v0,LavaBridgeNarrow-v0 \
 	    --steps 100000 --out runs/study
 	$(STUDY_EXTENSION) --methods rfcl --envs LavaBridge-v0 --steps 100000 --out runs/study/LavaBridge-v0
+	$(STUDY_EXTENSION) --methods rfcl --envs LavaBridgeTwoCrossings-v0 --steps 300000 --out runs/study
 	$(BIN)/lava-bridge-bench export runs/study results/study
 	$(STUDY_KEEP_LOGS)
 
