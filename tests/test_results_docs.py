@@ -373,6 +373,50 @@ def test_results_md_on_where_rfcl_stalls_on_the_medium_maze_reads_its_start_weig
         assert fact in quoted, f"docs/results.md on where rfcl stalls should say {fact!r}, as its runs do"
 
 
+def test_results_md_on_where_rfcl_stops_on_the_two_crossings_reads_its_runs():
+    # the section's account is read from the study's rfcl runs on the task at seeds 0-19 (the first look): the
+    # seeds reaching p0 success 0.8 are those whose reverse stage handed over (start weights without a demo
+    # state), and the others' last starts lie within the quoted span of expert steps and time limits
+    import numpy as np
+
+    from lava_bridge_mj.agents.reverse_curriculum import goal_reaching_demos
+    from lava_bridge_mj.agents.rfcl import RFCLReverseSS
+    from lava_bridge_mj.eval.analysis.summary import read_start_weights
+    from lava_bridge_mj.eval.training.run_files import read_metrics
+
+    task = "LavaBridgeTwoCrossings-v0"
+    demo_states, ids = goal_reaching_demos(lava_bridge_mj.load_demos(500, env_id=task))
+    curriculum = RFCLReverseSS(demo_states, ids)
+    reached, handed_over, stalled = set(), {}, []
+    auxss_reached = sum(max(row["success_p0"] for row in read_metrics(ROOT / "results/study" / task / "auxss-d500"
+                                                                      / f"seed{seed}")) >= 0.8 for seed in range(20))
+    for seed in range(20):
+        run = ROOT / "results/study" / task / "rfcl-d500" / f"seed{seed}"
+        if max(row["success_p0"] for row in read_metrics(run)) >= 0.8:
+            reached.add(seed)
+        steps, _, probabilities = read_start_weights(run / "start_weights.npz")
+        on_demos = probabilities[:, :len(demo_states)].sum(axis=1)
+        if (on_demos == 0).any():
+            handed_over[seed] = int(steps[np.argmax(on_demos == 0)])
+        else:
+            window = np.flatnonzero(probabilities[-1, :len(demo_states)] > 0)
+            assert len(window) == 5 and np.all(np.diff(window) == 1), seed  # five consecutive demo states
+            stalled.extend(window.tolist())
+    assert len(np.unique(ids)) == 1 and reached == set(handed_over)
+    back = [curriculum.steps_back(i) for i in stalled]
+    limits = [curriculum.time_limit(i) for i in stalled]
+    named = ", ".join(map(str, sorted(reached)[:-1])) + f" and {sorted(reached)[-1]}"
+    quoted = " ".join(section((ROOT / "docs/results.md").read_text(),
+                              "## Where RFCL's reverse stage stops on the two crossings").split())
+    for fact in (f"on {len(reached)} of 20 seeds, against {auxss_reached} of 20 for AuxSS", f"seeds {named}", f"the other {20 - len(reached)}",
+                 f"between {min(handed_over.values()):,} and {max(handed_over.values()):,} steps",
+                 f"({len(demo_states)} states)", f"between {min(back)} and {max(back)} of the expert's steps",
+                 f"{min(limits)} to {max(limits)} steps"):
+        assert fact in quoted, f"docs/results.md on where rfcl stops on the two crossings should say {fact!r}"
+    left = " ".join(section((ROOT / "docs/results.md").read_text(), "## What is left").split())
+    assert f"RFCL's reverse stage stops on {20 - len(reached)} of 20 seeds" in left
+
+
 def test_results_md_on_rfcls_time_limit_quotes_its_report():
     # the same for rfcl on the medium maze: every count and decimal is in docs/report_rfcl_limit
     report = (ROOT / "docs/report_rfcl_limit/report.md").read_text()
