@@ -330,6 +330,15 @@ def test_results_md_on_the_reverse_curriculums_time_limit_quotes_its_report():
     assert_quoted_from(quoted, report, "docs/results.md on the reverse curriculum's time limit")
 
 
+def reverse_stage_handover(steps, probabilities, demo_count):
+    """The first evaluation step of an rfcl run whose start weights hold no demo state (the first
+    `demo_count` candidates): where its reverse stage handed over to the forward stage; None if it never did."""
+    import numpy as np
+
+    off_demos = probabilities[:, :demo_count].sum(axis=1) == 0
+    return int(steps[np.argmax(off_demos)]) if off_demos.any() else None
+
+
 def test_results_md_on_where_rfcl_stalls_on_the_medium_maze_reads_its_start_weights():
     # the section's account of the stall is read from the study's committed rfcl runs on the maze: from which
     # evaluation every seed's starts stop moving, which demo states they are, how many expert steps those are
@@ -361,9 +370,9 @@ def test_results_md_on_where_rfcl_stalls_on_the_medium_maze_reads_its_start_weig
     handed_over = []
     for run in sorted((ROOT / "results/study_ablations" / task / "rfcl-no_limit-d500").glob("seed*")):
         steps, _, probabilities = read_start_weights(run / "start_weights.npz")
-        on_demos = probabilities[:, :len(demo_states)].sum(axis=1)
-        if (on_demos == 0).any():
-            handed_over.append(int(steps[np.argmax(on_demos == 0)]))
+        step = reverse_stage_handover(steps, probabilities, len(demo_states))
+        if step is not None:
+            handed_over.append(step)
     quoted = " ".join(section((ROOT / "docs/results.md").read_text(),
                               "## RFCL without its shortened time limit, on the medium maze").split())
     assert len(np.unique(ids)) == 1 and starts == set(range(first, last + 1))
@@ -387,34 +396,37 @@ def test_results_md_on_where_rfcl_stops_on_the_two_crossings_reads_its_runs():
     task = "LavaBridgeTwoCrossings-v0"
     demo_states, ids = goal_reaching_demos(lava_bridge_mj.load_demos(500, env_id=task))
     curriculum = RFCLReverseSS(demo_states, ids)
-    reached, handed_over, stalled = set(), {}, []
-    auxss_reached = sum(max(row["success_p0"] for row in read_metrics(ROOT / "results/study" / task / "auxss-d500"
-                                                                      / f"seed{seed}")) >= 0.8 for seed in range(20))
+
+    def reached(method):
+        return {seed for seed in range(20) if max(row["success_p0"] for row in read_metrics(
+            ROOT / "results/study" / task / f"{method}-d500" / f"seed{seed}")) >= 0.8}
+
+    handed_over, stalled = {}, []
     for seed in range(20):
-        run = ROOT / "results/study" / task / "rfcl-d500" / f"seed{seed}"
-        if max(row["success_p0"] for row in read_metrics(run)) >= 0.8:
-            reached.add(seed)
-        steps, _, probabilities = read_start_weights(run / "start_weights.npz")
-        on_demos = probabilities[:, :len(demo_states)].sum(axis=1)
-        if (on_demos == 0).any():
-            handed_over[seed] = int(steps[np.argmax(on_demos == 0)])
+        steps, _, probabilities = read_start_weights(ROOT / "results/study" / task / "rfcl-d500" / f"seed{seed}"
+                                                     / "start_weights.npz")
+        step = reverse_stage_handover(steps, probabilities, len(demo_states))
+        if step is not None:
+            handed_over[seed] = step
         else:
             window = np.flatnonzero(probabilities[-1, :len(demo_states)] > 0)
             assert len(window) == 5 and np.all(np.diff(window) == 1), seed  # five consecutive demo states
             stalled.extend(window.tolist())
-    assert len(np.unique(ids)) == 1 and reached == set(handed_over)
+    rfcl_reached = sorted(reached("rfcl"))
+    assert len(np.unique(ids)) == 1 and rfcl_reached == sorted(handed_over)
     back = [curriculum.steps_back(i) for i in stalled]
     limits = [curriculum.time_limit(i) for i in stalled]
-    named = ", ".join(map(str, sorted(reached)[:-1])) + f" and {sorted(reached)[-1]}"
+    named = ", ".join(map(str, rfcl_reached[:-1])) + f" and {rfcl_reached[-1]}"
     quoted = " ".join(section((ROOT / "docs/results.md").read_text(),
                               "## Where RFCL's reverse stage stops on the two crossings").split())
-    for fact in (f"on {len(reached)} of 20 seeds, against {auxss_reached} of 20 for AuxSS", f"seeds {named}", f"the other {20 - len(reached)}",
+    for fact in (f"on {len(rfcl_reached)} of 20 seeds, against {len(reached('auxss'))} of 20 for AuxSS",
+                 f"seeds {named}", f"the other {20 - len(rfcl_reached)}",
                  f"between {min(handed_over.values()):,} and {max(handed_over.values()):,} steps",
                  f"({len(demo_states)} states)", f"between {min(back)} and {max(back)} of the expert's steps",
                  f"{min(limits)} to {max(limits)} steps"):
         assert fact in quoted, f"docs/results.md on where rfcl stops on the two crossings should say {fact!r}"
     left = " ".join(section((ROOT / "docs/results.md").read_text(), "## What is left").split())
-    assert f"RFCL's reverse stage stops on {20 - len(reached)} of 20 seeds" in left
+    assert f"RFCL's reverse stage stops on {20 - len(rfcl_reached)} of 20 seeds" in left
 
 
 def test_results_md_on_rfcls_time_limit_quotes_its_report():
