@@ -110,6 +110,19 @@ def test_results_md_and_the_readme_state_the_verdicts_the_committed_reports_give
     assert findings_verdicts(findings, rf"^\| (\d) \| [^|]+ \| ({verdicts})\b") == expected, "docs/findings.md table"
 
 
+RETIRED_VERDICTS = ("not enough seeds to decide", "not enough seeds;", "*not enough seeds")
+"""What *undecided* was called before negatives needed an equivalence test; results/CHANGELOG.md, the
+record of the change, is the one text that still names it."""
+
+
+def test_the_docs_name_no_verdict_outside_the_stated_vocabulary():
+    texts = [ROOT / "README.md", ROOT / "results/README.md", *sorted((ROOT / "docs").rglob("*.md")),
+             *sorted((ROOT / "eval").rglob("*.py"))]
+    flat = {path.relative_to(ROOT).as_posix(): " ".join(path.read_text().split()) for path in texts}
+    assert [(path, name) for path, text in flat.items() for name in RETIRED_VERDICTS if name in text] == []
+    assert f"| **{UNDECIDED}** |" in flat["docs/results.md"] and f"| **{NO_DIFFERENCE}** |" in flat["docs/results.md"]
+
+
 # one comparison of the study's questions: the pair, the aspect, the effect with its interval ("-" where the
 # pair was not run) and the verdict
 STUDY_ROW = (r"^\| (\w+ against \w+) \| (learns faster|more robust) \| "
