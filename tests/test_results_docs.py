@@ -411,9 +411,9 @@ def test_results_md_on_where_rfcl_stops_on_the_two_crossings_reads_its_runs():
     curriculum = RFCLReverseSS(demo_states, ids)
 
     def reached(method):
-        """The seeds of the first look that reach p0 success 0.8, as the report counts them."""
+        """Seed -> step, for the seeds of the first look that reach p0 success 0.8, as the report counts them."""
         [group] = group_runs(find_runs(ROOT / "results/study" / task / f"{method}-d500", seeds=range(20)))
-        return {seed for seed, step in steps_to_threshold(group).per_seed.items() if step < float("inf")}
+        return {seed: step for seed, step in steps_to_threshold(group).per_seed.items() if step < float("inf")}
 
     handed_over, stalled = {}, []
     for seed in range(20):
@@ -428,6 +428,8 @@ def test_results_md_on_where_rfcl_stops_on_the_two_crossings_reads_its_runs():
             stalled.extend(window.tolist())
     rfcl_reached = sorted(reached("rfcl"))
     assert len(np.unique(ids)) == 1 and rfcl_reached == sorted(handed_over)
+    reverse_alone = reached("rfcl_reverse")  # the reverse stage without the forward one
+    assert sorted(reverse_alone) == rfcl_reached
     back = [curriculum.steps_back(i) for i in stalled]
     limits = [curriculum.time_limit(i) for i in stalled]
     named = ", ".join(map(str, rfcl_reached[:-1])) + f" and {rfcl_reached[-1]}"
@@ -437,7 +439,9 @@ def test_results_md_on_where_rfcl_stops_on_the_two_crossings_reads_its_runs():
                  f"seeds {named}", f"the other {20 - len(rfcl_reached)}",
                  f"between {min(handed_over.values()):,} and {max(handed_over.values()):,} steps",
                  f"({len(demo_states)} states)", f"between {min(back)} and {max(back)} of the expert's steps",
-                 f"{min(limits)} to {max(limits)} steps"):
+                 f"{min(limits)} to {max(limits)} steps",
+                 f"reaches 0.8 on the same seeds, between {min(reverse_alone.values()):,.0f} and "
+                 f"{max(reverse_alone.values()):,.0f} steps"):
         assert fact in quoted, f"docs/results.md on where rfcl stops on the two crossings should say {fact!r}"
     left = " ".join(section((ROOT / "docs/results.md").read_text(), "## What is left").split())
     assert f"RFCL's reverse stage stops on {20 - len(rfcl_reached)} of 20 seeds" in left
