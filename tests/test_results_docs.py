@@ -445,6 +445,24 @@ def test_results_md_on_where_rfcl_stops_on_the_two_crossings_reads_its_runs():
         assert fact in quoted, f"docs/results.md on where rfcl stops on the two crossings should say {fact!r}"
     left = " ".join(section((ROOT / "docs/results.md").read_text(), "## What is left").split())
     assert f"RFCL's reverse stage stops on {20 - len(rfcl_reached)} of 20 seeds" in left
+    # the extension's seeds, read the same way: which hand over, which of those reach 0.8, and that no other does
+    extension = range(20, 49)
+    [group] = group_runs(find_runs(ROOT / "results/study" / task / "rfcl-d500", seeds=extension))
+    reached_later = {seed for seed, step in steps_to_threshold(group).per_seed.items() if step < float("inf")}
+    later = {}
+    for seed in extension:
+        steps, _, probabilities = read_start_weights(ROOT / "results/study" / task / "rfcl-d500" / f"seed{seed}"
+                                                     / "start_weights.npz")
+        step = reverse_stage_handover(steps, probabilities, len(demo_states))
+        if step is not None:
+            later[seed] = step
+    assert reached_later <= set(later)
+    [missed] = sorted(set(later) - reached_later)
+    for fact in (f"{len(later)} of the {len(extension)} hand over", f"{len(reached_later)} of those reach 0.8",
+                 f"between {min(later.values()):,} and {max(later.values()):,} steps",
+                 f"seed {missed} hands over at {later[missed]:,} steps",
+                 f"none of the other {len(extension) - len(later)} reaches it"):
+        assert fact in quoted, f"docs/results.md on where rfcl stops on the two crossings should say {fact!r}"
 
 
 def test_results_md_on_rfcls_time_limit_quotes_its_report():
