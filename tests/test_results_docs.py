@@ -249,6 +249,12 @@ def first_look(without=()):
             for question in answer_questions([g for g in groups if g.task == task], study_looks())}
 
 
+def group_holds(task, method, seeds):
+    """Whether results/study holds a run of `method` on `task` at every one of `seeds`."""
+    return all((ROOT / "results/study" / task / f"{method}-d500" / f"seed{seed}" / "metrics.csv").is_file()
+               for seed in seeds)
+
+
 def external_tasks_at_their_first_look():
     """The external tasks every start group of whose `make study-external` sweep (both questions' groups, which
     train together) is in results/study at the study's seeds: a maze's extension is decided on all of them,
@@ -256,8 +262,7 @@ def external_tasks_at_their_first_look():
     first, last = study_seed_range()
     starts = [sweep for sweep in makefile_sweeps("study-external") if "auxss" in sweep["--methods"].split(",")]
     return {task for sweep in starts for task in sweep["--envs"].split(",")
-            if all((ROOT / "results/study" / task / f"{method}-d500" / f"seed{seed}" / "metrics.csv").is_file()
-                   for method in sweep["--methods"].split(",") for seed in range(first, last + 1))}
+            if all(group_holds(task, method, range(first, last + 1)) for method in sweep["--methods"].split(","))}
 
 
 def test_the_seed_extension_trains_exactly_the_groups_the_first_look_leaves_undecided():
@@ -269,9 +274,10 @@ def test_the_seed_extension_trains_exactly_the_groups_the_first_look_leaves_unde
     # The suite's extension was decided on the study's own groups, before RFCL as published had runs; the
     # external tasks' extension on all of their groups, rfcl among them, once every one of a maze's groups is in.
     first_look_seeds, second_look = study_looks()
+    external = external_tasks_at_their_first_look()
     answers = {**{key: found for key, found in first_look(without=RFCL_METHODS).items()
                   if key[0] in lava_bridge_mj.SUITE},
-               **{key: found for key, found in first_look().items() if key[0] in external_tasks_at_their_first_look()}}
+               **{key: found for key, found in first_look().items() if key[0] in external}}
     still_open = [(task, answer) for (task, _), found in answers.items() for answer in found
                   if answer.verdict == UNDECIDED or answer.at_one_look_only]
     open_groups = {(task, method) for task, answer in still_open for method in (answer.a, answer.b)}
@@ -332,8 +338,7 @@ def test_the_study_report_reads_a_tasks_extension_once_every_group_of_it_has_all
     held_back = held_back_tasks()
     assert set(held_back.values()) <= {f"{study_first}-{study_last}"}
     incomplete = {task for task, method in extension_groups()
-                  if not all((ROOT / "results/study" / task / f"{method}-d500" / f"seed{seed}" / "metrics.csv").is_file()
-                             for seed in range(study_first, study_first + second_look))}
+                  if not group_holds(task, method, range(study_first, study_first + second_look))}
     assert set(held_back) == incomplete
 
 
@@ -421,20 +426,24 @@ def test_results_md_on_where_rfcl_stops_on_the_two_crossings_reads_its_runs():
     demo_states, ids = goal_reaching_demos(lava_bridge_mj.load_demos(500, env_id=task))
     curriculum = RFCLReverseSS(demo_states, ids)
 
-    def reached(method):
-        """Seed -> step, for the seeds of the first look that reach p0 success 0.8, as the report counts them."""
-        [group] = group_runs(find_runs(ROOT / "results/study" / task / f"{method}-d500", seeds=range(20)))
+    def reached(method, seeds=range(20)):
+        """Seed -> step, for those of `seeds` (the first look's) that reach p0 success 0.8, as the report counts them."""
+        [group] = group_runs(find_runs(ROOT / "results/study" / task / f"{method}-d500", seeds=seeds))
         return {seed: step for seed, step in steps_to_threshold(group).per_seed.items() if step < float("inf")}
+
+    def handover(seed):
+        """rfcl's step of handing over to the forward stage on `seed` (None: never), and its last start weights."""
+        steps, _, probabilities = read_start_weights(ROOT / "results/study" / task / "rfcl-d500" / f"seed{seed}"
+                                                     / "start_weights.npz")
+        return reverse_stage_handover(steps, probabilities, len(demo_states)), probabilities[-1]
 
     handed_over, stalled = {}, []
     for seed in range(20):
-        steps, _, probabilities = read_start_weights(ROOT / "results/study" / task / "rfcl-d500" / f"seed{seed}"
-                                                     / "start_weights.npz")
-        step = reverse_stage_handover(steps, probabilities, len(demo_states))
+        step, last_weights = handover(seed)
         if step is not None:
             handed_over[seed] = step
         else:
-            window = np.flatnonzero(probabilities[-1, :len(demo_states)] > 0)
+            window = np.flatnonzero(last_weights[:len(demo_states)] > 0)
             assert len(window) == 5 and np.all(np.diff(window) == 1), seed  # five consecutive demo states
             stalled.extend(window.tolist())
     rfcl_reached = sorted(reached("rfcl"))
@@ -458,15 +467,8 @@ def test_results_md_on_where_rfcl_stops_on_the_two_crossings_reads_its_runs():
     assert f"RFCL's reverse stage stops on {20 - len(rfcl_reached)} of 20 seeds" in left
     # the extension's seeds, read the same way: which hand over, which of those reach 0.8, and that no other does
     extension = range(20, 49)
-    [group] = group_runs(find_runs(ROOT / "results/study" / task / "rfcl-d500", seeds=extension))
-    reached_later = {seed for seed, step in steps_to_threshold(group).per_seed.items() if step < float("inf")}
-    later = {}
-    for seed in extension:
-        steps, _, probabilities = read_start_weights(ROOT / "results/study" / task / "rfcl-d500" / f"seed{seed}"
-                                                     / "start_weights.npz")
-        step = reverse_stage_handover(steps, probabilities, len(demo_states))
-        if step is not None:
-            later[seed] = step
+    reached_later = set(reached("rfcl", extension))
+    later = {seed: step for seed in extension if (step := handover(seed)[0]) is not None}
     assert reached_later <= set(later)
     [missed] = sorted(set(later) - reached_later)
     for fact in (f"{len(later)} of the {len(extension)} hand over", f"{len(reached_later)} of those reach 0.8",
