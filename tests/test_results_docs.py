@@ -466,7 +466,8 @@ def test_results_md_on_where_rfcl_stops_on_the_two_crossings_reads_its_runs():
     left = " ".join(section((ROOT / "docs/results.md").read_text(), "## What is left").split())
     assert f"RFCL's reverse stage stops on {20 - len(rfcl_reached)} of 20 seeds" in left
     # the extension's seeds, read the same way: which hand over, which of those reach 0.8, and that no other does
-    extension = range(20, 49)
+    (study_first, study_last), (_, second_look) = study_seed_range(), study_looks()
+    extension = range(study_last + 1, study_first + second_look)
     reached_later = set(reached("rfcl", extension))
     later = {seed: step for seed in extension if (step := handover(seed)[0]) is not None}
     assert reached_later <= set(later)
