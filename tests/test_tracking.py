@@ -171,9 +171,16 @@ def wandb_records(run_dir, wait=30.0):
     from the .wandb file W&B wrote. W&B's service process may still be flushing the file when the run has
     returned on a loaded machine, so the files are read again until every one holds its run record, for at
     most `wait` seconds."""
+    from google.protobuf.message import DecodeError
+
     deadline = time.monotonic() + wait
     while True:
-        found = _wandb_records(run_dir)
+        try:
+            found = _wandb_records(run_dir)
+        except DecodeError:  # a record caught half-flushed: read the file again
+            if time.monotonic() > deadline:
+                raise
+            found = [(None, {})]
         if all(run is not None for run, _ in found) or time.monotonic() > deadline:
             return found
         time.sleep(0.5)
@@ -192,7 +199,7 @@ def _wandb_records(run_dir):
                 position += 32768 - position % 32768
                 continue
             _, length, kind = struct.unpack("<IHB", data[position:position + 7])
-            if kind == 0:
+            if kind == 0 or position + 7 + length > len(data):  # padding, or a record still being written
                 break
             pieces.append(data[position + 7:position + 7 + length])
             position += 7 + length
