@@ -6,7 +6,11 @@ big integers where the package uses floats), analytic equivalence tests where th
 intervals numerically, and Pocock's two-look level from scipy's bivariate normal where the package
 integrates by quadrature. It prints, per task and question, the verdict of every comparison as JSON.
 
-    python tests/outside/recompute_study.py results/study --seeds 0-48 --looks 20,49
+    python tests/outside/recompute_study.py results/study --seeds 0-48 --looks 20,49 \
+        --task-seeds PointMaze_Large-v3=0-19
+
+--task-seeds TASK=FIRST-LAST (repeatable) reads that task at its own seeds, as the study report does for a
+task whose seed extension is still training.
 """
 
 import argparse
@@ -223,12 +227,19 @@ def main() -> None:
     parser.add_argument("root", type=Path)
     parser.add_argument("--seeds", default="0-48")
     parser.add_argument("--looks", default="20,49")
+    parser.add_argument("--task-seeds", action="append", default=[], metavar="TASK=FIRST-LAST")
     args = parser.parse_args()
     first, last = map(int, args.seeds.split("-"))
+    own_seeds = {}
+    for text in args.task_seeds:
+        name, _, seeds = text.partition("=")
+        low, high = map(int, seeds.split("-"))
+        own_seeds[name] = set(range(low, high + 1))
     level = two_look_level(*map(int, args.looks.split(",")))
     tasks = {}
     for task in sorted(p for p in args.root.iterdir() if p.is_dir()):
-        groups = {folder.name.rsplit("-d", 1)[0]: read_group(folder, set(range(first, last + 1)))
+        seeds = own_seeds.get(task.name, set(range(first, last + 1)))
+        groups = {folder.name.rsplit("-d", 1)[0]: read_group(folder, seeds)
                   for folder in task.glob("*-d500")}
         tasks[task.name] = answer({m: g for m, g in groups.items() if g}, level)
     summary = {task: {n: Counter(c["verdict"] for c in comparisons) for n, comparisons in answers.items()}
