@@ -37,7 +37,13 @@ def run_case(argv: list[str], out: Path) -> tuple[float, float]:
         code = sweep.main([*argv, "--out", str(out)])
     wall = time.perf_counter() - start
     if code != 0:
-        raise SystemExit(f"the sweep failed (exit {code}); see {out}/sweep.json")
+        # the temporary directory goes with the exit, so the failed jobs' errors are printed, not pointed to
+        try:
+            jobs = json.loads((out / "sweep.json").read_text())["jobs"]
+            errors = "; ".join(f"{job.get('error')}" for job in jobs if job.get("status") != "done")
+        except (OSError, ValueError, KeyError) as error:
+            errors = f"sweep.json unreadable: {error}"
+        raise SystemExit(f"the sweep {' '.join(argv)} failed (exit {code}): {errors}")
     return wall, json.loads((out / "sweep.json").read_text())["wall_time"]
 
 
