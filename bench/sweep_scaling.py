@@ -40,7 +40,8 @@ def run_case(argv: list[str], out: Path) -> tuple[float, float]:
         # the temporary directory goes with the exit, so the failed jobs' errors are printed, not pointed to
         try:
             jobs = json.loads((out / "sweep.json").read_text())["jobs"]
-            errors = "; ".join(f"{job.get('error')}" for job in jobs if job.get("status") != "done")
+            errors = "; ".join(f"{job.get('status')}: {job.get('error')}" for job in jobs
+                               if job.get("status") not in ("done", "skipped"))
         except (OSError, ValueError, KeyError) as error:
             errors = f"sweep.json unreadable: {error}"
         raise SystemExit(f"the sweep {' '.join(argv)} failed (exit {code}): {errors}")

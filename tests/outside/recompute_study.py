@@ -222,23 +222,34 @@ def answer(groups: dict, level: float) -> dict[int, list[dict]]:
     return answers
 
 
+def seed_range(text: str) -> set[int]:
+    """An argparse type: 'FIRST-LAST', the seeds FIRST to LAST."""
+    first, dash, last = text.partition("-")
+    if not (dash and first.isdigit() and last.isdigit() and int(first) <= int(last)):
+        raise argparse.ArgumentTypeError(f"expected seeds as FIRST-LAST such as 0-48, got {text!r}")
+    return set(range(int(first), int(last) + 1))
+
+
+def task_seed_range(text: str) -> tuple[str, set[int]]:
+    """An argparse type: 'TASK=FIRST-LAST'."""
+    task, equals, seeds = text.partition("=")
+    if not (task and equals):
+        raise argparse.ArgumentTypeError(f"expected TASK=FIRST-LAST such as PointMaze_Large-v3=0-19, got {text!r}")
+    return task, seed_range(seeds)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("root", type=Path)
-    parser.add_argument("--seeds", default="0-48")
+    parser.add_argument("--seeds", type=seed_range, default="0-48", metavar="FIRST-LAST")
     parser.add_argument("--looks", default="20,49")
-    parser.add_argument("--task-seeds", action="append", default=[], metavar="TASK=FIRST-LAST")
+    parser.add_argument("--task-seeds", type=task_seed_range, action="append", default=[], metavar="TASK=FIRST-LAST")
     args = parser.parse_args()
-    first, last = map(int, args.seeds.split("-"))
-    own_seeds = {}
-    for text in args.task_seeds:
-        name, _, seeds = text.partition("=")
-        low, high = map(int, seeds.split("-"))
-        own_seeds[name] = set(range(low, high + 1))
+    own_seeds = dict(args.task_seeds)
     level = two_look_level(*map(int, args.looks.split(",")))
     tasks = {}
     for task in sorted(p for p in args.root.iterdir() if p.is_dir()):
-        seeds = own_seeds.get(task.name, set(range(first, last + 1)))
+        seeds = own_seeds.get(task.name, args.seeds)
         groups = {folder.name.rsplit("-d", 1)[0]: read_group(folder, seeds)
                   for folder in task.glob("*-d500")}
         tasks[task.name] = answer({m: g for m, g in groups.items() if g}, level)
