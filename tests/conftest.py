@@ -48,6 +48,19 @@ def makefile_sweeps(target):
     return [dict(zip(argv[::2], argv[1::2])) for argv in makefile_commands(target, "sweep")]
 
 
+def study_report_command():
+    """The argument list of the Makefile's `lava-bridge-bench report` line that makes docs/report_study."""
+    [argv] = [argv for argv in makefile_commands("report", "report") if argv[argv.index("--out") + 1] == "docs/report_study"]
+    return argv
+
+
+def held_back_tasks():
+    """Task -> "FIRST-LAST", for each task the study report reads at other seeds than its --seeds: the
+    `--task-seeds` it is given while that task's seed extension trains."""
+    argv = study_report_command()
+    return dict(argv[i + 1].split("=", 1) for i, arg in enumerate(argv) if arg == "--task-seeds")
+
+
 @pytest.fixture(scope="session", autouse=True)
 def scratch_tmpdir():
     """TMPDIR, for this process and the ones it starts, a fresh directory removed at the end. A sweep's

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 import lava_bridge_mj
-from conftest import makefile_commands, makefile_sweeps
+from conftest import held_back_tasks, makefile_commands, makefile_sweeps, study_report_command
 
 pytest.importorskip("rliable", reason="the report needs the plots extra: pip install -e '.[plots]'")
 
@@ -24,13 +24,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 COMMANDS = makefile_commands("report", "report")
 """The argument lists of the `lava-bridge-bench report` lines of the Makefile's report target."""
-[STUDY_REPORT] = [argv for argv in COMMANDS if argv[argv.index("--out") + 1] == "docs/report_study"]
+STUDY_REPORT = study_report_command()
 """The study report's argument list."""
-
-
-def held_back_tasks():
-    """Task -> seeds, for each task the study report reads at other seeds than its --seeds (--task-seeds)."""
-    return dict(STUDY_REPORT[i + 1].split("=") for i, arg in enumerate(STUDY_REPORT) if arg == "--task-seeds")
 
 
 def test_the_report_target_makes_every_committed_report():

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import lava_bridge_mj
-from conftest import episode_rows, groups_in, makefile_commands, makefile_sweeps, write_metric_runs
+from conftest import (episode_rows, groups_in, held_back_tasks, makefile_commands, makefile_sweeps, study_report_command,
+                      write_metric_runs)
 from test_runner import resume_from_mid_episode_checkpoint, tiny_config
 
 from lava_bridge_mj.agents import NO_STATE, RFCLReverseSS, RFCLSS, StartStateWrapper, StrategyContext
@@ -253,11 +254,11 @@ def test_committed_study_reads_rfcl_exactly_on_the_tasks_that_have_its_runs():
     from lava_bridge_mj.eval.analysis.report import task_seed_list
     from lava_bridge_mj.eval.analysis.study import answer_questions, answers_record
 
-    report = next(argv for argv in makefile_commands("report", "report") if argv[-1] == "docs/report_study")
+    report = study_report_command()
     first, last = map(int, report[report.index("--seeds") + 1].split("-"))
     looks = tuple(map(int, report[report.index("--looks") + 1].split(",")))
     # a task whose seed extension is still training is read at the seeds --task-seeds gives it, as the report does
-    task_seeds = dict(task_seed_list(report[i + 1]) for i, arg in enumerate(report) if arg == "--task-seeds")
+    task_seeds = dict(task_seed_list(f"{task}={seeds}") for task, seeds in held_back_tasks().items())
     groups = group_runs(find_runs(ROOT / report[0], seeds=range(first, last + 1), task_seeds=task_seeds))
     answers = {task: answer_questions([g for g in groups if g.task == task], looks)
                for task in dict.fromkeys(g.task for g in groups)}
