@@ -206,7 +206,7 @@ report: setup
 	$(BIN)/lava-bridge-bench report results/suite/screening/LavaBridgeTwoCrossings-v0 --budget 300000 --seeds 100-104 \
 	    --out docs/report_screening_300k
 	$(BIN)/lava-bridge-bench report results/study --seeds $(STUDY_REPORT_SEEDS) --looks $(STUDY_LOOKS) \
-	    --task-seeds PointMaze_Large-v3=0-19 --out docs/report_study
+	    --out docs/report_study
 	$(BIN)/lava-bridge-bench report results/study/LavaBridgeFarStart-v0/auxss-d500 \
 	    results/study/LavaBridgeFarStart-v0/reverse_ss-d500 results/study_ablations/LavaBridgeFarStart-v0 \
 	    --seeds $(STUDY_SEEDS) --all-pairs --out docs/report_reverse_limit

@@ -6,8 +6,7 @@ big integers where the package uses floats), analytic equivalence tests where th
 intervals numerically, and Pocock's two-look level from scipy's bivariate normal where the package
 integrates by quadrature. It prints, per task and question, the verdict of every comparison as JSON.
 
-    python tests/outside/recompute_study.py results/study --seeds 0-48 --looks 20,49 \
-        --task-seeds PointMaze_Large-v3=0-19
+    python tests/outside/recompute_study.py results/study --seeds 0-48 --looks 20,49
 
 --task-seeds TASK=FIRST-LAST (repeatable) reads that task at its own seeds, as the study report does for a
 task whose seed extension is still training.
