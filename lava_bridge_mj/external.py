@@ -25,6 +25,7 @@ import dataclasses
 import importlib
 from collections import deque
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Callable, Protocol
 
 import gymnasium
@@ -45,6 +46,20 @@ def import_extra(package: str, extra: str):
         return importlib.import_module(package)
     except ImportError as error:
         raise ImportError(f"this task needs the {package} package: pip install 'lava-bridge-mj[{extra}]'") from error
+
+
+def remove_maze_xml(env: gymnasium.Env) -> gymnasium.Env:
+    """`env`, with the MJCF file a Gymnasium-Robotics maze env wrote removed (other envs as they are).
+
+    Each maze env that Gymnasium-Robotics makes writes its model to a new file in the temp directory
+    and never removes it: a study's sweeps, which make envs for every run and evaluation, left tens of
+    thousands. The env has loaded its model from the file by the time `gymnasium.make` returns, so the
+    file can go. Only a file named uniquely (ant_mazeTIMESTAMP.xml) goes: older maze envs write one
+    shared name, which another process may be about to load."""
+    written = getattr(env.unwrapped, "tmp_xml_file_path", None)
+    if written is not None and Path(written).name != "ant_maze.xml":
+        Path(written).unlink(missing_ok=True)
+    return env
 
 
 def state_offset(model: mujoco.MjModel, component: mujoco.mjtState) -> int:
@@ -148,7 +163,7 @@ class ExternalTask:
         spec = self.spec()
         if not time_limit:
             spec = dataclasses.replace(spec, max_episode_steps=None)
-        return gymnasium.make(spec, **{**self.env_kwargs(), **kwargs})
+        return remove_maze_xml(gymnasium.make(spec, **{**self.env_kwargs(), **kwargs}))
 
     def env_kwargs(self) -> dict[str, Any]:
         """The arguments the task gives `gymnasium.make`."""

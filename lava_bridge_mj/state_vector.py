@@ -58,14 +58,14 @@ def make_state_env(env_id: str, time_limit: bool = True, **env_kwargs: Any) -> g
     `time_limit`. ValueError naming `env_id` for an id gymnasium does not know or an env ResetToState
     cannot serve. An external task (`lava_bridge_mj.external.EXTERNAL_TASKS`) is its `make_task_env`:
     the task's arguments, its named starts and its `task_states`."""
-    from lava_bridge_mj.external import EXTERNAL_TASKS, make_task_env
+    from lava_bridge_mj.external import EXTERNAL_TASKS, make_task_env, remove_maze_xml
 
     if env_id in EXTERNAL_TASKS:
         return make_task_env(env_id, time_limit=time_limit, **env_kwargs)
     spec = env_spec(env_id)
     if not time_limit:
         spec = dataclasses.replace(spec, max_episode_steps=None)
-    env = gymnasium.make(spec, disable_env_checker=True, **env_kwargs)
+    env = remove_maze_xml(gymnasium.make(spec, disable_env_checker=True, **env_kwargs))
     try:
         return ResetToState(env)
     except ValueError as error:

@@ -8,6 +8,7 @@ import re
 import socket
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import mujoco
@@ -209,6 +210,22 @@ def test_a_missing_extra_is_named(monkeypatch):
     monkeypatch.setitem(sys.modules, "ogbench", None)  # import ogbench now raises ImportError
     with pytest.raises(ImportError, match=r"pip install 'lava-bridge-mj\[ogbench\]'"):
         make_task_env(CUBE)
+
+
+@pytest.mark.parametrize("env_id", [MAZES[1], "gymnasium_robotics:PointMaze_UMaze-v3"])
+def test_making_a_maze_env_leaves_no_file_in_the_temp_directory(env_id, tmp_path, monkeypatch):
+    # Gymnasium-Robotics writes each maze's model to a new file beside tempfile's directories: the
+    # task's env and any maze env made by id remove it, once the model is loaded
+    from lava_bridge_mj.state_vector import make_state_env
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    env = make_state_env(env_id)
+    assert Path(env.unwrapped.tmp_xml_file_path).parent == tmp_path  # where the env wrote it
+    assert list(tmp_path.iterdir()) == []
+    env.reset(seed=0)
+    _, _, terminated, truncated, _ = env.step(env.action_space.sample())  # the loaded model runs
+    assert not (terminated or truncated)
+    env.close()
 
 
 def test_importing_the_module_imports_neither_project():
